@@ -1,0 +1,18 @@
+//! HDR environment lighting for lightfarm: loading lat-long maps (Radiance `.hdr`, OpenEXR),
+//! the project's direction <-> lat-long convention, the per-sample rotation/flip, and the
+//! importance-sampling tables the GPU integrator reads.
+//!
+//! Conventions (DESIGN.md): +Y up; u = atan2(x, -z)/2π in [0, 1), v = acos(y)/π; row 0 of a
+//! map is the top (v = 0 = +Y). Texels are linear RGB.
+
+mod distribution;
+mod hdri;
+mod load;
+mod mapping;
+mod sampler;
+
+pub use distribution::{Distribution1D, Distribution2D};
+pub use hdri::Hdri;
+pub use load::LightError;
+pub use mapping::{dir_to_uv, uv_to_dir, EnvTransform};
+pub use sampler::EnvSampler;

@@ -1,0 +1,299 @@
+//! Flattens a [`Scene`] into the arrays the shaders read: one obvhs CWBVH per mesh (BLAS) and a
+//! CWBVH over the instances (TLAS), triangles reordered into leaf order, materials and textures.
+//! Pure CPU work with no Vulkan, so the traversal tests can use the same data as a reference.
+
+use std::time::Duration;
+
+use glam::{Mat4, Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::builder::{build_cwbvh, build_cwbvh_from_tris};
+use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::cwbvh::CwBvh;
+use obvhs::triangle::Triangle;
+use obvhs::BvhBuildParams;
+
+use crate::gpu_types::{InstanceGpu, MaterialGpu, MAT_FLAG_LENS, NO_NODE, NO_TEX, TRI_ATTR_VEC4S};
+use crate::scene::{Material, Scene};
+use crate::RenderError;
+
+/// One bottom-level structure: a mesh's triangles in object space.
+pub struct Blas {
+    pub mesh: u32,
+    pub bvh: CwBvh,
+    /// Object-space triangles in the mesh's original order (the CPU reference intersects these).
+    pub triangles: Vec<Triangle>,
+    pub node_offset: u32,
+    pub tri_offset: u32,
+}
+
+/// Everything the kernels need about the geometry and its materials.
+pub struct PackedScene {
+    pub nodes: Vec<CwBvhNode>,
+    pub tri_pos: Vec<[f32; 4]>,
+    pub tri_attr: Vec<[f32; 4]>,
+    /// In TLAS leaf order: GPU instance i is `scene.instances[instance_order[i]]`.
+    pub instances: Vec<InstanceGpu>,
+    pub instance_order: Vec<u32>,
+    /// Index into `blas` for each GPU instance.
+    pub instance_blas: Vec<u32>,
+    pub materials: Vec<MaterialGpu>,
+    pub tex_data: Vec<u32>,
+    pub tex_desc: Vec<[u32; 4]>,
+    pub tlas_node_offset: u32,
+    pub blas: Vec<Blas>,
+    /// For each triangle slot: (blas index, triangle index within the mesh).
+    pub slot_triangle: Vec<(u32, u32)>,
+    pub triangle_count: usize,
+}
+
+fn build_params() -> BvhBuildParams {
+    // Spatial splits would duplicate triangles across leaves; keep one slot per triangle.
+    let mut p = BvhBuildParams::medium_build();
+    p.pre_split = false;
+    p.max_prims_per_leaf = 3;
+    p
+}
+
+fn material_gpu(m: &Material, texture_count: u32) -> MaterialGpu {
+    let tex = |t: Option<u32>| t.filter(|&i| i < texture_count).unwrap_or(NO_TEX);
+    let lens = m.transmission > 0.5;
+    MaterialGpu {
+        base_color: m.base_color,
+        mrst: [
+            m.metallic.clamp(0.0, 1.0),
+            m.roughness.clamp(0.0, 1.0),
+            m.specular.clamp(0.0, 1.0),
+            m.transmission.clamp(0.0, 1.0),
+        ],
+        spec_color_ior: [
+            m.specular_color[0].max(0.0),
+            m.specular_color[1].max(0.0),
+            m.specular_color[2].max(0.0),
+            m.ior.clamp(1.0, 4.0),
+        ],
+        tex: [
+            tex(m.base_color_texture),
+            tex(m.metallic_roughness_texture),
+            tex(m.normal_texture),
+            if lens { MAT_FLAG_LENS } else { 0 },
+        ],
+        extra: [m.normal_scale, 0.0, 0.0, 0.0],
+    }
+}
+
+fn transform_aabb(m: &Mat4, a: &Aabb) -> Aabb {
+    let mut out = Aabb::empty();
+    for i in 0..8 {
+        let c = Vec3::new(
+            if i & 1 == 0 { a.min.x } else { a.max.x },
+            if i & 2 == 0 { a.min.y } else { a.max.y },
+            if i & 4 == 0 { a.min.z } else { a.max.z },
+        );
+        out.extend(Vec3A::from(m.transform_point3(c)));
+    }
+    out
+}
+
+fn mat_cols(m: &Mat4) -> [[f32; 4]; 4] {
+    m.to_cols_array_2d()
+}
+
+/// Builds the BVHs and flattens `scene`. Meshes without triangles are skipped.
+pub fn pack_scene(scene: &Scene) -> Result<PackedScene, RenderError> {
+    let mut blas: Vec<Blas> = Vec::new();
+    let mut mesh_blas: Vec<Option<u32>> = vec![None; scene.meshes.len()];
+    let mut nodes: Vec<CwBvhNode> = Vec::new();
+    let mut tri_pos = Vec::new();
+    let mut tri_attr = Vec::new();
+    let mut slot_triangle = Vec::new();
+    let material_count = scene.materials.len() as u32;
+
+    for (mi, mesh) in scene.meshes.iter().enumerate() {
+        let tri_count = mesh.indices.len() / 3;
+        if tri_count == 0 {
+            continue;
+        }
+        let vcount = mesh.positions.len();
+        let idx = |k: usize| -> Result<usize, RenderError> {
+            let i = mesh.indices[k] as usize;
+            if i >= vcount {
+                return Err(RenderError::InvalidScene(format!(
+                    "mesh '{}' index {i} is out of range ({vcount} vertices)",
+                    mesh.name
+                )));
+            }
+            Ok(i)
+        };
+        let mut tris = Vec::with_capacity(tri_count);
+        for t in 0..tri_count {
+            let (a, b, c) = (idx(3 * t)?, idx(3 * t + 1)?, idx(3 * t + 2)?);
+            tris.push(Triangle {
+                v0: Vec3A::from(mesh.positions[a]),
+                v1: Vec3A::from(mesh.positions[b]),
+                v2: Vec3A::from(mesh.positions[c]),
+            });
+        }
+        let bvh = build_cwbvh_from_tris(&tris, build_params(), &mut Duration::default());
+        let node_offset = nodes.len() as u32;
+        let tri_offset = slot_triangle.len() as u32;
+        nodes.extend_from_slice(&bvh.nodes);
+        let bi = blas.len() as u32;
+        for &prim in &bvh.primitive_indices {
+            let t = prim as usize;
+            let ids = [
+                mesh.indices[3 * t] as usize,
+                mesh.indices[3 * t + 1] as usize,
+                mesh.indices[3 * t + 2] as usize,
+            ];
+            for &v in &ids {
+                let p = mesh.positions[v];
+                tri_pos.push([p[0], p[1], p[2], 0.0]);
+            }
+            let n = |v: usize| mesh.normals.get(v).copied().unwrap_or([0.0; 3]);
+            let uv = |v: usize| mesh.uvs.get(v).copied().unwrap_or([0.0; 2]);
+            let (n0, n1, n2) = (n(ids[0]), n(ids[1]), n(ids[2]));
+            let (uv0, uv1, uv2) = (uv(ids[0]), uv(ids[1]), uv(ids[2]));
+            let mat = mesh
+                .triangle_materials
+                .get(t)
+                .copied()
+                .unwrap_or(0)
+                .min(material_count.saturating_sub(1));
+            tri_attr.push([n0[0], n0[1], n0[2], uv0[0]]);
+            tri_attr.push([n1[0], n1[1], n1[2], uv0[1]]);
+            tri_attr.push([n2[0], n2[1], n2[2], uv1[0]]);
+            tri_attr.push([uv1[1], uv2[0], uv2[1], f32::from_bits(mat)]);
+            let mut tan = [0.0f32; 4];
+            for &v in &ids {
+                if let Some(tv) = mesh.tangents.get(v) {
+                    for k in 0..3 {
+                        tan[k] += tv[k];
+                    }
+                    tan[3] = if tv[3] < 0.0 { -1.0 } else { 1.0 };
+                }
+            }
+            tri_attr.push(tan);
+            slot_triangle.push((bi, prim));
+        }
+        mesh_blas[mi] = Some(bi);
+        blas.push(Blas {
+            mesh: mi as u32,
+            bvh,
+            triangles: tris,
+            node_offset,
+            tri_offset,
+        });
+    }
+    debug_assert_eq!(tri_attr.len(), slot_triangle.len() * TRI_ATTR_VEC4S);
+
+    // Top level over the instances whose mesh has triangles.
+    let mut live: Vec<(u32, u32, Mat4)> = Vec::new(); // (scene instance, blas, transform)
+    for (ii, inst) in scene.instances.iter().enumerate() {
+        let Some(Some(bi)) = mesh_blas.get(inst.mesh as usize) else {
+            continue;
+        };
+        if inst.transform.determinant().abs() < 1e-20 || !inst.transform.is_finite() {
+            return Err(RenderError::InvalidScene(format!(
+                "instance {ii} has a singular or non-finite transform"
+            )));
+        }
+        live.push((ii as u32, *bi, inst.transform));
+    }
+    let mut triangle_count = 0usize;
+    let mut instances = Vec::new();
+    let mut instance_order = Vec::new();
+    let mut instance_blas = Vec::new();
+    let tlas_node_offset = if live.is_empty() {
+        NO_NODE
+    } else {
+        let boxes: Vec<Aabb> = live
+            .iter()
+            .map(|(_, bi, m)| transform_aabb(m, &blas[*bi as usize].bvh.total_aabb))
+            .collect();
+        let tlas = build_cwbvh(&boxes, build_params(), &mut Duration::default());
+        let offset = nodes.len() as u32;
+        nodes.extend_from_slice(&tlas.nodes);
+        for &leaf in &tlas.primitive_indices {
+            let (ii, bi, m) = live[leaf as usize];
+            let b = &blas[bi as usize];
+            instances.push(InstanceGpu {
+                obj_to_world: mat_cols(&m),
+                world_to_obj: mat_cols(&m.inverse()),
+                node_offset: b.node_offset,
+                tri_offset: b.tri_offset,
+                flags: 0,
+                _pad: 0,
+            });
+            instance_order.push(ii);
+            instance_blas.push(bi);
+            triangle_count += b.triangles.len();
+        }
+        offset
+    };
+
+    let mut tex_data = Vec::new();
+    let mut tex_desc = Vec::new();
+    for (ti, t) in scene.textures.iter().enumerate() {
+        let expected = t.width as usize * t.height as usize * 4;
+        if t.width == 0 || t.height == 0 || t.rgba8.len() != expected {
+            return Err(RenderError::InvalidScene(format!(
+                "texture {ti} has {} bytes for {}x{} RGBA8",
+                t.rgba8.len(),
+                t.width,
+                t.height
+            )));
+        }
+        tex_desc.push([tex_data.len() as u32, t.width, t.height, 0]);
+        tex_data.extend(
+            t.rgba8
+                .chunks_exact(4)
+                .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])),
+        );
+    }
+    let tex_count = scene.textures.len() as u32;
+    let mut materials: Vec<MaterialGpu> = scene
+        .materials
+        .iter()
+        .map(|m| material_gpu(m, tex_count))
+        .collect();
+    if materials.is_empty() {
+        materials.push(material_gpu(&Material::default(), 0));
+    }
+
+    Ok(PackedScene {
+        nodes,
+        tri_pos,
+        tri_attr,
+        instances,
+        instance_order,
+        instance_blas,
+        materials,
+        tex_data,
+        tex_desc,
+        tlas_node_offset,
+        blas,
+        slot_triangle,
+        triangle_count,
+    })
+}
+
+impl PackedScene {
+    /// A scene with no geometry (every ray misses); the probes bind it when they test sampling alone.
+    pub fn empty() -> PackedScene {
+        PackedScene {
+            nodes: Vec::new(),
+            tri_pos: Vec::new(),
+            tri_attr: Vec::new(),
+            instances: Vec::new(),
+            instance_order: Vec::new(),
+            instance_blas: Vec::new(),
+            materials: vec![material_gpu(&Material::default(), 0)],
+            tex_data: Vec::new(),
+            tex_desc: Vec::new(),
+            tlas_node_offset: NO_NODE,
+            blas: Vec::new(),
+            slot_triangle: Vec::new(),
+            triangle_count: 0,
+        }
+    }
+}

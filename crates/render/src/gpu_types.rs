@@ -1,0 +1,90 @@
+//! `#[repr(C)]` mirrors of the structs in `shaders/inc/bindings.wgsl`: the one place where the
+//! host's and the shaders' data layouts meet. Sizes are asserted at compile time.
+
+use bytemuck::{Pod, Zeroable};
+
+pub const NO_NODE: u32 = u32::MAX;
+pub const NO_TEX: u32 = u32::MAX;
+pub const MAT_FLAG_LENS: u32 = 1;
+/// vec4s of per-triangle attributes in `tri_attr` (see shaders/inc/traverse.wgsl).
+pub const TRI_ATTR_VEC4S: usize = 5;
+/// u32 words per CWBVH node.
+pub const NODE_WORDS: usize = 20;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct Params {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub seed: u32,
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    pub num_lights: u32,
+    pub tlas_node_offset: u32,
+    pub cam_pos: [f32; 4],
+    pub cam_right: [f32; 4],
+    pub cam_up: [f32; 4],
+    pub cam_fwd: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct InstanceGpu {
+    pub obj_to_world: [[f32; 4]; 4],
+    pub world_to_obj: [[f32; 4]; 4],
+    pub node_offset: u32,
+    pub tri_offset: u32,
+    pub flags: u32,
+    pub _pad: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct MaterialGpu {
+    pub base_color: [f32; 4],
+    /// metallic, roughness, specular, transmission
+    pub mrst: [f32; 4],
+    /// specular colour, ior
+    pub spec_color_ior: [f32; 4],
+    /// base, metallic-roughness, normal texture (NO_TEX when absent), flags
+    pub tex: [u32; 4],
+    /// normal scale
+    pub extra: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct EnvDesc {
+    pub width: u32,
+    pub height: u32,
+    pub texel_offset: u32,
+    pub cond_func_offset: u32,
+    pub cond_cdf_offset: u32,
+    pub marg_func_offset: u32,
+    pub marg_cdf_offset: u32,
+    pub flip: u32,
+    pub cos_rot: f32,
+    pub sin_rot: f32,
+    pub marg_integral: f32,
+    pub _pad: f32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct Push {
+    pub sample_start: u32,
+    pub sample_count: u32,
+    pub light: u32,
+    pub write_aux: u32,
+    pub mode: u32,
+    pub count: u32,
+    pub _pad: [u32; 2],
+}
+
+const _: () = assert!(std::mem::size_of::<Params>() == 96);
+const _: () = assert!(std::mem::size_of::<InstanceGpu>() == 144);
+const _: () = assert!(std::mem::size_of::<MaterialGpu>() == 80);
+const _: () = assert!(std::mem::size_of::<EnvDesc>() == 48);
+const _: () = assert!(std::mem::size_of::<Push>() == 32);
+const _: () = assert!(std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>() == NODE_WORDS * 4);

@@ -1,0 +1,39 @@
+//! lightfarm's path tracer. See README.md in this crate for what it owns.
+//!
+//! Layout: `scene` (CPU scene from glTF), `gpu_scene` / `gpu_env` (flattening into the shaders'
+//! arrays, BVH builds), `gpu_types` (the shared `#[repr(C)]` structs), `vulkan` (the only module
+//! that touches ash), `renderer` (dispatching the integrator), `output` (EXR and PNG), `probe`
+//! (running the sampling routines and traversal on the device for tests).
+
+pub mod gpu_env;
+pub mod gpu_scene;
+pub mod gpu_types;
+pub mod output;
+pub mod probe;
+pub mod renderer;
+pub mod scene;
+pub mod shaders;
+pub mod vulkan;
+
+pub use gpu_env::EnvLight;
+pub use renderer::{RenderOutput, RenderSettings, RenderStats, Renderer};
+
+/// Version recorded in every output (the sample's `renderer` attribute).
+pub const RENDERER_VERSION: &str = concat!("lightfarm-render ", env!("CARGO_PKG_VERSION"));
+
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error(transparent)]
+    Vulkan(#[from] vulkan::VulkanError),
+    #[error(transparent)]
+    Scene(#[from] scene::SceneError),
+    #[error("invalid scene: {0}")]
+    InvalidScene(String),
+    #[error("invalid render settings: {0}")]
+    InvalidSettings(String),
+    #[error("cannot write {path}: {reason}")]
+    Output {
+        path: std::path::PathBuf,
+        reason: String,
+    },
+}

@@ -1,0 +1,143 @@
+//! Writes a render as the sample contract's multi-layer OpenEXR (DESIGN.md, "The sample"), and a
+//! tone-mapped PNG preview. Files are written beside the target and renamed into place, so an
+//! interrupted write never leaves a truncated EXR under the final name.
+
+use std::path::{Path, PathBuf};
+
+use exr::prelude::*;
+
+use crate::renderer::RenderOutput;
+use crate::RenderError;
+
+fn out_err(path: &Path, reason: impl ToString) -> RenderError {
+    RenderError::Output {
+        path: path.to_path_buf(),
+        reason: reason.to_string(),
+    }
+}
+
+fn temp_path(path: &Path) -> PathBuf {
+    let mut name = path
+        .file_name()
+        .map(|n| n.to_os_string())
+        .unwrap_or_default();
+    name.push(format!(".tmp{}", std::process::id()));
+    path.with_file_name(name)
+}
+
+fn channel(name: String, data: Vec<f32>) -> AnyChannel<FlatSamples> {
+    AnyChannel::new(name.as_str(), FlatSamples::F32(data))
+}
+
+fn split3(v: &[[f32; 3]], layer: &str, names: [&str; 3], out: &mut Vec<AnyChannel<FlatSamples>>) {
+    for (k, n) in names.iter().enumerate() {
+        out.push(channel(
+            format!("{layer}.{n}"),
+            v.iter().map(|p| p[k]).collect(),
+        ));
+    }
+}
+
+/// Channel names of an output with `lightings` lit layers, in the order they are written.
+pub fn channel_names(lightings: usize) -> Vec<String> {
+    let mut v = Vec::new();
+    for l in 0..lightings {
+        for c in ["R", "G", "B"] {
+            v.push(format!("lit{l}.{c}"));
+        }
+    }
+    for c in ["R", "G", "B"] {
+        v.push(format!("albedo.{c}"));
+    }
+    for layer in ["normal", "normal_lens"] {
+        for c in ["X", "Y", "Z"] {
+            v.push(format!("{layer}.{c}"));
+        }
+    }
+    v.push("mask.A".into());
+    v
+}
+
+/// Writes every pass as 32-bit float channels (ZIP compressed) with `attributes` as string
+/// header attributes (sample spec, renderer version, statistics).
+pub fn write_exr(
+    path: &Path,
+    out: &RenderOutput,
+    attributes: &[(String, String)],
+) -> std::result::Result<(), RenderError> {
+    let mut channels = Vec::new();
+    for (l, img) in out.lit.iter().enumerate() {
+        split3(img, &format!("lit{l}"), ["R", "G", "B"], &mut channels);
+    }
+    split3(&out.albedo, "albedo", ["R", "G", "B"], &mut channels);
+    split3(&out.normal, "normal", ["X", "Y", "Z"], &mut channels);
+    split3(
+        &out.normal_lens,
+        "normal_lens",
+        ["X", "Y", "Z"],
+        &mut channels,
+    );
+    channels.push(channel("mask.A".into(), out.mask.clone()));
+    let mut attrs = LayerAttributes::default();
+    for (k, v) in attributes {
+        attrs.other.insert(
+            Text::from(k.as_str()),
+            AttributeValue::Text(Text::from(v.as_str())),
+        );
+    }
+    let layer = Layer::new(
+        (out.width as usize, out.height as usize),
+        attrs,
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(channels.into()),
+    );
+    let tmp = temp_path(path);
+    Image::from_layer(layer)
+        .write()
+        .to_file(&tmp)
+        .map_err(|e| out_err(path, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| out_err(path, e))
+}
+
+/// A small sRGB preview of a lit layer: exposure set so the subject's mean luminance lands at
+/// 0.18 before a Reinhard curve, background black.
+pub fn write_preview_png(
+    path: &Path,
+    out: &RenderOutput,
+    lighting: usize,
+) -> std::result::Result<(), RenderError> {
+    let lit = out
+        .lit
+        .get(lighting)
+        .ok_or_else(|| out_err(path, format!("no lighting {lighting}")))?;
+    let (mut sum, mut weight) = (0.0f64, 0.0f64);
+    for (p, m) in lit.iter().zip(&out.mask) {
+        sum += (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]) as f64;
+        weight += *m as f64;
+    }
+    let mean = if weight > 0.0 { sum / weight } else { 0.0 };
+    let exposure = if mean > 0.0 {
+        (0.18 / mean) as f32
+    } else {
+        1.0
+    };
+    let encode = |x: f32| {
+        let t = (x * exposure) / (1.0 + x * exposure);
+        let s = if t <= 0.0031308 {
+            12.92 * t
+        } else {
+            1.055 * t.powf(1.0 / 2.4) - 0.055
+        };
+        (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+    };
+    let mut bytes = Vec::with_capacity(lit.len() * 3);
+    for p in lit {
+        bytes.extend([encode(p[0]), encode(p[1]), encode(p[2])]);
+    }
+    let img = image::RgbImage::from_raw(out.width, out.height, bytes)
+        .ok_or_else(|| out_err(path, "image size mismatch"))?;
+    let tmp = temp_path(path);
+    img.save_with_format(&tmp, image::ImageFormat::Png)
+        .map_err(|e| out_err(path, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| out_err(path, e))
+}

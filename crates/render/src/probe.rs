@@ -1,0 +1,274 @@
+//! Runs the shaders' own sampling routines and traversal on the device, so the tests check the
+//! code that renders rather than a CPU re-implementation of it (shaders/kernels/probe.wgsl and
+//! trace_rays.wgsl).
+
+use std::sync::Arc;
+
+use crate::gpu_env::{pack_envs, EnvLight, PackedEnv};
+use crate::gpu_scene::PackedScene;
+use crate::gpu_types::{Params, Push};
+use crate::renderer::Bound;
+use crate::shaders;
+use crate::vulkan::{ComputeKernel, GpuBuffer, GpuContext};
+use crate::RenderError;
+
+/// The largest batch one probe call accepts (one dispatch of 64-wide groups).
+pub const MAX_PROBE: usize = 1 << 22;
+
+/// Surface parameters as the shaders' `Surface` struct sees them (α, not roughness).
+#[derive(Clone, Copy, Debug)]
+pub struct ProbeSurface {
+    pub base: [f32; 3],
+    pub metallic: f32,
+    pub alpha: f32,
+    pub specular: f32,
+    pub spec_color: [f32; 3],
+    pub transmission: f32,
+    pub ior: f32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfProbeSample {
+    pub wi: [f32; 3],
+    pub pdf: f32,
+    pub weight: [f32; 3],
+    pub valid: bool,
+    pub delta: bool,
+}
+
+/// A closest hit as the shader reports it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpuHit {
+    pub t: f32,
+    pub instance: u32,
+    pub slot: u32,
+}
+
+pub struct Probe {
+    ctx: Arc<GpuContext>,
+    probe: ComputeKernel,
+    trace: ComputeKernel,
+}
+
+fn check_len(n: usize) -> Result<(), RenderError> {
+    if n == 0 || n > MAX_PROBE {
+        return Err(RenderError::InvalidSettings(format!(
+            "probe batch of {n}: use 1..={MAX_PROBE}"
+        )));
+    }
+    Ok(())
+}
+
+impl Probe {
+    pub fn new(ctx: &Arc<GpuContext>) -> Result<Probe, RenderError> {
+        let push = std::mem::size_of::<Push>() as u32;
+        Ok(Probe {
+            ctx: ctx.clone(),
+            probe: ComputeKernel::new(
+                ctx,
+                "probe",
+                &shaders::probe(),
+                shaders::NUM_BINDINGS,
+                push,
+            )?,
+            trace: ComputeKernel::new(
+                ctx,
+                "trace_rays",
+                &shaders::trace_rays(),
+                shaders::NUM_BINDINGS,
+                push,
+            )?,
+        })
+    }
+
+    fn run(
+        &self,
+        kernel: &ComputeKernel,
+        scene: &PackedScene,
+        env: &PackedEnv,
+        input: &[[f32; 4]],
+        out_vec4s: usize,
+        push: Push,
+        seed: u32,
+    ) -> Result<Vec<[f32; 4]>, RenderError> {
+        let params = Params {
+            seed,
+            tlas_node_offset: scene.tlas_node_offset,
+            ..Default::default()
+        };
+        let bound = Bound::upload(&self.ctx, &params, scene, env)?;
+        let dummy = |label| GpuBuffer::zeroed(&self.ctx, label, 16);
+        let (lit, aux, counters) = (dummy("unused")?, dummy("unused")?, dummy("unused")?);
+        let pin = GpuBuffer::from_slice(&self.ctx, "probe input", input)?;
+        let pout = GpuBuffer::zeroed(&self.ctx, "probe output", (out_vec4s as u64) * 16)?;
+        let bindings = bound.bindings([&lit, &aux, &counters, &pin, &pout]);
+        kernel.dispatch(
+            &bindings,
+            bytemuck::bytes_of(&push),
+            [(push.count).div_ceil(64), 1, 1],
+        )?;
+        let mut out: Vec<[f32; 4]> = pout.read()?;
+        out.truncate(out_vec4s);
+        Ok(out)
+    }
+
+    fn surface_input(s: &ProbeSurface, wo: [f32; 3]) -> Vec<[f32; 4]> {
+        vec![
+            [s.base[0], s.base[1], s.base[2], s.metallic],
+            [s.alpha, s.specular, s.transmission, s.ior],
+            [s.spec_color[0], s.spec_color[1], s.spec_color[2], 0.0],
+            [wo[0], wo[1], wo[2], 0.0],
+        ]
+    }
+
+    /// `n` samples of the BSDF for direction `wo` (local frame, z = normal).
+    pub fn bsdf_samples(
+        &self,
+        s: &ProbeSurface,
+        wo: [f32; 3],
+        n: usize,
+        seed: u32,
+    ) -> Result<Vec<BsdfProbeSample>, RenderError> {
+        check_len(n)?;
+        let push = Push {
+            mode: 0,
+            count: n as u32,
+            ..Default::default()
+        };
+        let out = self.run(
+            &self.probe,
+            &PackedScene::empty(),
+            &PackedEnv::default(),
+            &Self::surface_input(s, wo),
+            2 * n,
+            push,
+            seed,
+        )?;
+        Ok(out
+            .chunks_exact(2)
+            .map(|c| BsdfProbeSample {
+                wi: [c[0][0], c[0][1], c[0][2]],
+                pdf: c[0][3],
+                weight: [c[1][0], c[1][1], c[1][2]],
+                valid: (c[1][3] as u32) & 1 != 0,
+                delta: (c[1][3] as u32) & 2 != 0,
+            })
+            .collect())
+    }
+
+    /// (f·cos, pdf) of the BSDF for each `wi`.
+    pub fn bsdf_eval(
+        &self,
+        s: &ProbeSurface,
+        wo: [f32; 3],
+        wis: &[[f32; 3]],
+    ) -> Result<Vec<([f32; 3], f32)>, RenderError> {
+        check_len(wis.len())?;
+        let mut input = Self::surface_input(s, wo);
+        input.extend(wis.iter().map(|w| [w[0], w[1], w[2], 0.0]));
+        let push = Push {
+            mode: 1,
+            count: wis.len() as u32,
+            ..Default::default()
+        };
+        let out = self.run(
+            &self.probe,
+            &PackedScene::empty(),
+            &PackedEnv::default(),
+            &input,
+            wis.len(),
+            push,
+            0,
+        )?;
+        Ok(out.iter().map(|v| ([v[0], v[1], v[2]], v[3])).collect())
+    }
+
+    /// `n` (world direction, solid-angle pdf) samples of the environment light.
+    pub fn env_samples(
+        &self,
+        light: &EnvLight,
+        n: usize,
+        seed: u32,
+    ) -> Result<Vec<([f32; 3], f32)>, RenderError> {
+        check_len(n)?;
+        let env = pack_envs(std::slice::from_ref(light));
+        let push = Push {
+            mode: 2,
+            count: n as u32,
+            ..Default::default()
+        };
+        let out = self.run(
+            &self.probe,
+            &PackedScene::empty(),
+            &env,
+            &[[0.0; 4]],
+            n,
+            push,
+            seed,
+        )?;
+        Ok(out.iter().map(|v| ([v[0], v[1], v[2]], v[3])).collect())
+    }
+
+    /// (pdf, radiance) of the environment light for each world direction.
+    pub fn env_eval(
+        &self,
+        light: &EnvLight,
+        dirs: &[[f32; 3]],
+    ) -> Result<Vec<(f32, [f32; 3])>, RenderError> {
+        check_len(dirs.len())?;
+        let env = pack_envs(std::slice::from_ref(light));
+        let input: Vec<[f32; 4]> = dirs.iter().map(|d| [d[0], d[1], d[2], 0.0]).collect();
+        let push = Push {
+            mode: 3,
+            count: dirs.len() as u32,
+            ..Default::default()
+        };
+        let out = self.run(
+            &self.probe,
+            &PackedScene::empty(),
+            &env,
+            &input,
+            dirs.len(),
+            push,
+            0,
+        )?;
+        Ok(out.iter().map(|v| (v[0], [v[1], v[2], v[3]])).collect())
+    }
+
+    /// Closest hits of world-space rays (origin, direction, tmin, tmax) against `scene`.
+    pub fn trace(
+        &self,
+        scene: &PackedScene,
+        rays: &[([f32; 3], [f32; 3], f32, f32)],
+    ) -> Result<Vec<Option<GpuHit>>, RenderError> {
+        check_len(rays.len())?;
+        let mut input = Vec::with_capacity(2 * rays.len());
+        for (o, d, tmin, tmax) in rays {
+            input.push([o[0], o[1], o[2], *tmin]);
+            input.push([d[0], d[1], d[2], *tmax]);
+        }
+        let push = Push {
+            count: rays.len() as u32,
+            ..Default::default()
+        };
+        let out = self.run(
+            &self.trace,
+            scene,
+            &PackedEnv::default(),
+            &input,
+            rays.len(),
+            push,
+            0,
+        )?;
+        Ok(out
+            .iter()
+            .map(|v| {
+                (v[0] >= 0.0).then(|| GpuHit {
+                    t: v[0],
+                    instance: v[1].to_bits(),
+                    slot: v[2].to_bits(),
+                })
+            })
+            .collect())
+    }
+}

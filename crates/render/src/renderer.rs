@@ -1,0 +1,324 @@
+//! Dispatches the integrator: uploads a packed scene and its lightings, runs the samples in
+//! chunks (so progress is visible and no single dispatch runs for minutes), and resolves the
+//! accumulators into the sample's passes.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use crate::gpu_env::{pack_envs, EnvLight, PackedEnv};
+use crate::gpu_scene::PackedScene;
+use crate::gpu_types::{Params, Push};
+use crate::scene::Camera;
+use crate::shaders;
+use crate::vulkan::{ComputeKernel, DeviceInfo, DeviceRequest, GpuBuffer, GpuContext};
+use crate::RenderError;
+
+/// Limits that catch typos (`--spp 2560000`) before they turn into hour-long renders or
+/// allocations the device cannot make.
+pub const MAX_SIZE: u32 = 16384;
+pub const MAX_SPP: u32 = 1 << 20;
+pub const MAX_LIGHTS: usize = 16;
+
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub seed: u32,
+    /// Maximum number of scattering events on a path.
+    pub max_depth: u32,
+    /// Russian roulette starts at this depth.
+    pub rr_depth: u32,
+    pub camera: Camera,
+}
+
+impl RenderSettings {
+    pub fn validate(&self) -> Result<(), RenderError> {
+        let bad = |m: String| Err(RenderError::InvalidSettings(m));
+        if self.width == 0 || self.height == 0 || self.width > MAX_SIZE || self.height > MAX_SIZE {
+            return bad(format!(
+                "--size {}x{} is out of range: width and height must be 1..={MAX_SIZE}",
+                self.width, self.height
+            ));
+        }
+        if self.spp == 0 || self.spp > MAX_SPP {
+            return bad(format!(
+                "--spp {} is out of range: use 1..={MAX_SPP}",
+                self.spp
+            ));
+        }
+        if self.max_depth == 0 || self.max_depth > 1024 {
+            return bad(format!(
+                "max depth {} is out of range: use 1..=1024",
+                self.max_depth
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What one render measured.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RenderStats {
+    pub seconds: f64,
+    /// Camera samples over all lightings: width × height × spp × lightings.
+    pub samples: u64,
+    pub samples_per_second: f64,
+    /// Rays cast (camera, bounce, shadow and pass rays).
+    pub rays: u64,
+    pub rays_per_second: f64,
+    pub device: String,
+    pub device_kind: String,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub lightings: usize,
+    pub triangles: usize,
+}
+
+/// The passes of one render, row-major from the top-left pixel.
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    pub width: u32,
+    pub height: u32,
+    /// One image per lighting.
+    pub lit: Vec<Vec<[f32; 3]>>,
+    pub albedo: Vec<[f32; 3]>,
+    pub normal: Vec<[f32; 3]>,
+    pub normal_lens: Vec<[f32; 3]>,
+    pub mask: Vec<f32>,
+    pub stats: RenderStats,
+}
+
+/// Progress of a render, reported after every dispatch.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    pub done: u64,
+    pub total: u64,
+}
+
+/// Device buffers of a scene and its lights, bound in the order of shaders/inc/bindings.wgsl.
+pub(crate) struct Bound {
+    pub params: GpuBuffer,
+    pub scene: [GpuBuffer; 7],
+    pub env: [GpuBuffer; 3],
+}
+
+impl Bound {
+    pub fn upload(
+        ctx: &Arc<GpuContext>,
+        params: &Params,
+        scene: &PackedScene,
+        env: &PackedEnv,
+    ) -> Result<Bound, RenderError> {
+        Ok(Bound {
+            params: GpuBuffer::from_slice(ctx, "params", std::slice::from_ref(params))?,
+            scene: [
+                GpuBuffer::from_slice(ctx, "bvh nodes", &scene.nodes)?,
+                GpuBuffer::from_slice(ctx, "triangle positions", &scene.tri_pos)?,
+                GpuBuffer::from_slice(ctx, "triangle attributes", &scene.tri_attr)?,
+                GpuBuffer::from_slice(ctx, "instances", &scene.instances)?,
+                GpuBuffer::from_slice(ctx, "materials", &scene.materials)?,
+                GpuBuffer::from_slice(ctx, "texture data", &scene.tex_data)?,
+                GpuBuffer::from_slice(ctx, "texture descriptors", &scene.tex_desc)?,
+            ],
+            env: [
+                GpuBuffer::from_slice(ctx, "environment texels", &env.texels)?,
+                GpuBuffer::from_slice(ctx, "environment distributions", &env.dist)?,
+                GpuBuffer::from_slice(ctx, "environment descriptors", &env.desc)?,
+            ],
+        })
+    }
+
+    /// All 16 bindings, with the four read-write ones given.
+    pub fn bindings<'a>(&'a self, rw: [&'a GpuBuffer; 5]) -> Vec<&'a GpuBuffer> {
+        let mut v = vec![&self.params];
+        v.extend(self.scene.iter());
+        v.extend(self.env.iter());
+        v.extend(rw);
+        v
+    }
+}
+
+pub(crate) fn camera_params(settings: &RenderSettings) -> ([f32; 4], [f32; 4], [f32; 4], [f32; 4]) {
+    let cam = &settings.camera;
+    let fwd = cam.forward.normalize();
+    let right = fwd.cross(cam.up).normalize();
+    let up = right.cross(fwd);
+    let tan_half = (cam.yfov_deg.to_radians() * 0.5).tan();
+    let aspect = settings.width as f32 / settings.height as f32;
+    let r = right * tan_half * aspect;
+    let u = up * tan_half;
+    (
+        [cam.position.x, cam.position.y, cam.position.z, 0.0],
+        [r.x, r.y, r.z, 0.0],
+        [u.x, u.y, u.z, 0.0],
+        [fwd.x, fwd.y, fwd.z, 0.0],
+    )
+}
+
+pub struct Renderer {
+    ctx: Arc<GpuContext>,
+    integrator: ComputeKernel,
+}
+
+impl Renderer {
+    pub fn new(request: &DeviceRequest) -> Result<Renderer, RenderError> {
+        let ctx = GpuContext::new(request)?;
+        let integrator = ComputeKernel::new(
+            &ctx,
+            "integrator",
+            &shaders::integrator(),
+            shaders::NUM_BINDINGS,
+            std::mem::size_of::<Push>() as u32,
+        )?;
+        Ok(Renderer { ctx, integrator })
+    }
+
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
+    pub fn device(&self) -> &DeviceInfo {
+        self.ctx.info()
+    }
+
+    /// Renders every lighting of `lights` with the same camera samples, plus the passes.
+    pub fn render(
+        &self,
+        scene: &PackedScene,
+        lights: &[EnvLight],
+        settings: &RenderSettings,
+        progress: &mut dyn FnMut(Progress),
+    ) -> Result<RenderOutput, RenderError> {
+        settings.validate()?;
+        if lights.is_empty() || lights.len() > MAX_LIGHTS {
+            return Err(RenderError::InvalidSettings(format!(
+                "{} lightings given: pass 1..={MAX_LIGHTS} --hdri",
+                lights.len()
+            )));
+        }
+        let start = Instant::now();
+        let (w, h) = (settings.width, settings.height);
+        let pixels = w as u64 * h as u64;
+        let (cam_pos, cam_right, cam_up, cam_fwd) = camera_params(settings);
+        let params = Params {
+            width: w,
+            height: h,
+            spp: settings.spp,
+            seed: settings.seed,
+            max_depth: settings.max_depth,
+            rr_depth: settings.rr_depth,
+            num_lights: lights.len() as u32,
+            tlas_node_offset: scene.tlas_node_offset,
+            cam_pos,
+            cam_right,
+            cam_up,
+            cam_fwd,
+        };
+        let env = pack_envs(lights);
+        let bound = Bound::upload(&self.ctx, &params, scene, &env)?;
+        let lit = GpuBuffer::zeroed(
+            &self.ctx,
+            "radiance accumulator",
+            pixels * lights.len() as u64 * 16,
+        )?;
+        let aux = GpuBuffer::zeroed(&self.ctx, "pass accumulator", pixels * 4 * 16)?;
+        let counters = GpuBuffer::zeroed(&self.ctx, "ray counter", 16)?;
+        let dummy_in = GpuBuffer::zeroed(&self.ctx, "unused", 16)?;
+        let dummy_out = GpuBuffer::zeroed(&self.ctx, "unused", 16)?;
+        let bindings = bound.bindings([&lit, &aux, &counters, &dummy_in, &dummy_out]);
+
+        // About a million paths per dispatch: long enough to keep a GPU busy, short enough for
+        // a responsive progress bar on lavapipe and for the ray counter (u32) not to wrap.
+        let per_dispatch = ((1u64 << 20) / pixels).clamp(1, settings.spp as u64) as u32;
+        let groups = [w.div_ceil(8), h.div_ceil(8), 1];
+        let total = settings.spp as u64 * lights.len() as u64;
+        let mut done = 0u64;
+        let mut rays = 0u64;
+        for light in 0..lights.len() as u32 {
+            let mut s = 0u32;
+            while s < settings.spp {
+                let count = per_dispatch.min(settings.spp - s);
+                let push = Push {
+                    sample_start: s,
+                    sample_count: count,
+                    light,
+                    write_aux: (light == 0) as u32,
+                    ..Default::default()
+                };
+                self.integrator
+                    .dispatch(&bindings, bytemuck::bytes_of(&push), groups)?;
+                let c: Vec<u32> = counters.read()?;
+                rays += c[0] as u64;
+                counters.write(&[0u32; 4])?;
+                s += count;
+                done += count as u64;
+                progress(Progress { done, total });
+            }
+        }
+
+        let lit_sum: Vec<[f32; 4]> = lit.read()?;
+        let aux_sum: Vec<[f32; 4]> = aux.read()?;
+        let spp = settings.spp as f32;
+        let n = pixels as usize;
+        let lit_images = (0..lights.len())
+            .map(|l| {
+                lit_sum[l * n..(l + 1) * n]
+                    .iter()
+                    .map(|v| [v[0] / spp, v[1] / spp, v[2] / spp])
+                    .collect()
+            })
+            .collect();
+        let normalize = |v: [f32; 4]| {
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            if len > 0.0 {
+                [v[0] / len, v[1] / len, v[2] / len]
+            } else {
+                [0.0; 3]
+            }
+        };
+        let mut albedo = Vec::with_capacity(n);
+        let mut normal = Vec::with_capacity(n);
+        let mut normal_lens = Vec::with_capacity(n);
+        let mut mask = Vec::with_capacity(n);
+        for p in 0..n {
+            let a = aux_sum[4 * p];
+            let hits = a[3];
+            albedo.push(if hits > 0.0 {
+                [a[0] / hits, a[1] / hits, a[2] / hits]
+            } else {
+                [0.0; 3]
+            });
+            mask.push(hits / spp);
+            normal.push(normalize(aux_sum[4 * p + 1]));
+            normal_lens.push(normalize(aux_sum[4 * p + 2]));
+        }
+        let seconds = start.elapsed().as_secs_f64();
+        let samples = pixels * settings.spp as u64 * lights.len() as u64;
+        let info = self.ctx.info();
+        Ok(RenderOutput {
+            width: w,
+            height: h,
+            lit: lit_images,
+            albedo,
+            normal,
+            normal_lens,
+            mask,
+            stats: RenderStats {
+                seconds,
+                samples,
+                samples_per_second: samples as f64 / seconds.max(1e-9),
+                rays,
+                rays_per_second: rays as f64 / seconds.max(1e-9),
+                device: info.name.clone(),
+                device_kind: info.kind.clone(),
+                width: w,
+                height: h,
+                spp: settings.spp,
+                lightings: lights.len(),
+                triangles: scene.triangle_count,
+            },
+        })
+    }
+}

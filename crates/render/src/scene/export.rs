@@ -1,0 +1,259 @@
+//! Minimal .glb writer so tests and tools can turn analytic scenes into files that go through
+//! the real loader: geometry, factor-only materials (textures are not written), one node per
+//! instance and the perspective cameras.
+
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+use serde_json::{json, Value};
+
+use super::{Material, Scene, SceneError};
+
+const ARRAY_BUFFER: u32 = 34962;
+const ELEMENT_ARRAY_BUFFER: u32 = 34963;
+const FLOAT: u32 = 5126;
+const UNSIGNED_INT: u32 = 5125;
+
+/// Accumulates the single binary buffer with its views and accessors.
+#[derive(Default)]
+struct Bin {
+    data: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Bin {
+    fn push(&mut self, bytes: &[u8], target: u32, accessor: Value) -> usize {
+        // All components are 4 bytes wide, so 4-byte alignment satisfies glTF's rules.
+        while !self.data.len().is_multiple_of(4) {
+            self.data.push(0);
+        }
+        self.views.push(json!({
+            "buffer": 0,
+            "byteOffset": self.data.len(),
+            "byteLength": bytes.len(),
+            "target": target,
+        }));
+        self.data.extend_from_slice(bytes);
+        let mut accessor = accessor;
+        accessor["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    fn floats<const N: usize>(&mut self, items: &[[f32; N]], ty: &str, bounds: bool) -> usize {
+        let mut acc = json!({"componentType": FLOAT, "count": items.len(), "type": ty});
+        if bounds {
+            // POSITION accessors must carry min/max per the glTF spec.
+            let mut lo = [f32::INFINITY; N];
+            let mut hi = [f32::NEG_INFINITY; N];
+            for it in items {
+                for k in 0..N {
+                    lo[k] = lo[k].min(it[k]);
+                    hi[k] = hi[k].max(it[k]);
+                }
+            }
+            acc["min"] = json!(lo.to_vec());
+            acc["max"] = json!(hi.to_vec());
+        }
+        let bytes: Vec<u8> = items
+            .iter()
+            .flatten()
+            .flat_map(|f| f.to_le_bytes())
+            .collect();
+        self.push(&bytes, ARRAY_BUFFER, acc)
+    }
+}
+
+fn material_json(m: &Material) -> Value {
+    let d = Material::default();
+    let mut ext = serde_json::Map::new();
+    if m.transmission != d.transmission {
+        ext.insert(
+            "KHR_materials_transmission".into(),
+            json!({"transmissionFactor": m.transmission}),
+        );
+    }
+    if m.ior != d.ior {
+        ext.insert("KHR_materials_ior".into(), json!({"ior": m.ior}));
+    }
+    if m.specular != d.specular || m.specular_color != d.specular_color {
+        ext.insert(
+            "KHR_materials_specular".into(),
+            json!({"specularFactor": m.specular, "specularColorFactor": m.specular_color}),
+        );
+    }
+    let mut v = json!({
+        "name": m.name,
+        "pbrMetallicRoughness": {
+            "baseColorFactor": m.base_color,
+            "metallicFactor": m.metallic,
+            "roughnessFactor": m.roughness,
+        },
+        "doubleSided": m.double_sided,
+    });
+    if !ext.is_empty() {
+        v["extensions"] = Value::Object(ext);
+    }
+    v
+}
+
+/// Writes `scene` as a binary glTF 2.0 file.
+pub fn write_glb(scene: &Scene, path: &Path) -> Result<(), SceneError> {
+    let err = |reason: String| SceneError::Export {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let mut bin = Bin::default();
+    let mut meshes = Vec::new();
+    for (mi, mesh) in scene.meshes.iter().enumerate() {
+        let n = mesh.positions.len();
+        if mesh.normals.len() != n || mesh.uvs.len() != n || mesh.tangents.len() != n {
+            return Err(err(format!(
+                "mesh {mi} '{}' has attribute arrays of different lengths",
+                mesh.name
+            )));
+        }
+        if mesh.triangle_materials.len() != mesh.triangle_count() || n == 0 {
+            return Err(err(format!(
+                "mesh {mi} '{}' is empty or its triangle_materials do not match its triangles",
+                mesh.name
+            )));
+        }
+        let mut attributes = json!({
+            "POSITION": bin.floats(&mesh.positions, "VEC3", true),
+            "NORMAL": bin.floats(&mesh.normals, "VEC3", false),
+            "TEXCOORD_0": bin.floats(&mesh.uvs, "VEC2", false),
+        });
+        // An all-zero tangent array means "no UVs"; glTF forbids zero-length tangents.
+        if mesh
+            .tangents
+            .iter()
+            .all(|t| t[0] != 0.0 || t[1] != 0.0 || t[2] != 0.0)
+        {
+            attributes["TANGENT"] = json!(bin.floats(&mesh.tangents, "VEC4", false));
+        }
+        // glTF primitives carry one material each, so triangles are grouped by material.
+        let mut groups: Vec<(u32, Vec<u32>)> = Vec::new();
+        for (tri, &mat) in mesh.indices.chunks_exact(3).zip(&mesh.triangle_materials) {
+            if tri.iter().any(|&i| i as usize >= n) || mat as usize >= scene.materials.len() {
+                return Err(err(format!(
+                    "mesh {mi} '{}' has an index or material out of range",
+                    mesh.name
+                )));
+            }
+            match groups.iter_mut().find(|g| g.0 == mat) {
+                Some(g) => g.1.extend_from_slice(tri),
+                None => groups.push((mat, tri.to_vec())),
+            }
+        }
+        let primitives: Vec<Value> = groups
+            .iter()
+            .map(|(mat, idx)| {
+                let acc =
+                    json!({"componentType": UNSIGNED_INT, "count": idx.len(), "type": "SCALAR"});
+                let bytes: Vec<u8> = idx.iter().flat_map(|i| i.to_le_bytes()).collect();
+                let indices = bin.push(&bytes, ELEMENT_ARRAY_BUFFER, acc);
+                json!({"attributes": attributes, "indices": indices, "material": mat, "mode": 4})
+            })
+            .collect();
+        meshes.push(json!({"name": mesh.name, "primitives": primitives}));
+    }
+
+    let mut nodes: Vec<Value> = Vec::new();
+    for inst in &scene.instances {
+        if inst.mesh as usize >= scene.meshes.len() {
+            return Err(err(format!(
+                "an instance refers to missing mesh {}",
+                inst.mesh
+            )));
+        }
+        nodes.push(json!({"mesh": inst.mesh, "matrix": inst.transform.to_cols_array().to_vec()}));
+    }
+    let mut cameras = Vec::new();
+    for (ci, cam) in scene.cameras.iter().enumerate() {
+        // glTF cameras look along local -Z with local +Y up.
+        let right = cam.forward.cross(cam.up).normalize_or_zero();
+        let m = Mat4::from_cols(
+            right.extend(0.0),
+            cam.up.extend(0.0),
+            (-cam.forward).extend(0.0),
+            cam.position.extend(1.0),
+        );
+        if right == Vec3::ZERO || !m.is_finite() {
+            return Err(err(format!("camera {ci} has no valid orientation")));
+        }
+        cameras.push(json!({
+            "type": "perspective",
+            "perspective": {"yfov": cam.yfov_deg.to_radians(), "znear": 0.01},
+        }));
+        nodes.push(json!({"camera": ci, "matrix": m.to_cols_array().to_vec()}));
+    }
+    while !bin.data.len().is_multiple_of(4) {
+        bin.data.push(0);
+    }
+
+    let used: Vec<&str> = [
+        "KHR_materials_transmission",
+        "KHR_materials_ior",
+        "KHR_materials_specular",
+    ]
+    .into_iter()
+    .filter(|e| {
+        scene.materials.iter().any(|m| {
+            material_json(m)
+                .get("extensions")
+                .is_some_and(|x| x.get(*e).is_some())
+        })
+    })
+    .collect();
+    let mut root = json!({
+        "asset": {"version": "2.0", "generator": "lightfarm"},
+        "scene": 0,
+        "scenes": [{"nodes": (0..nodes.len()).collect::<Vec<_>>()}],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": scene.materials.iter().map(material_json).collect::<Vec<_>>(),
+        "accessors": bin.accessors,
+        "bufferViews": bin.views,
+        "buffers": [{"byteLength": bin.data.len()}],
+    });
+    if !cameras.is_empty() {
+        root["cameras"] = json!(cameras);
+    }
+    if !used.is_empty() {
+        root["extensionsUsed"] = json!(used);
+    }
+    // Validating through gltf-json catches a malformed document here, not in the reader.
+    let mut text = serde_json::to_vec(&root).map_err(|e| err(e.to_string()))?;
+    gltf::json::Root::from_slice(&text)
+        .map_err(|e| err(format!("internal error, generated invalid glTF JSON: {e}")))?;
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+
+    let total = 12
+        + 8
+        + text.len()
+        + if bin.data.is_empty() {
+            0
+        } else {
+            8 + bin.data.len()
+        };
+    let total =
+        u32::try_from(total).map_err(|_| err("scene exceeds the 4 GiB .glb limit".into()))?;
+    let mut out = Vec::with_capacity(total as usize);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&total.to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    if !bin.data.is_empty() {
+        out.extend_from_slice(&(bin.data.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&bin.data);
+    }
+    std::fs::write(path, out)
+        .map_err(|e| err(format!("{e}; check the directory exists and is writable")))
+}

@@ -1,0 +1,202 @@
+//! The CPU scene description: meshes, materials, textures, instances and cameras, loaded from
+//! glTF 2.0 and independent of the GPU. The Vulkan upload code consumes these types as they are.
+
+mod camera;
+pub mod export;
+mod geometry;
+mod load;
+pub mod shapes;
+
+use std::path::PathBuf;
+
+use glam::{Mat4, Vec3};
+
+pub use camera::Camera;
+pub use export::write_glb;
+
+/// Everything that can go wrong building a [`Scene`]; each variant names its input and says
+/// what the user can do about it.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("scene file {} does not exist; check the path", path.display())]
+    NotFound { path: PathBuf },
+    #[error(
+        "{} is not a readable glTF 2.0 file ({source}); re-export it as .glb or .gltf 2.0",
+        path.display()
+    )]
+    Gltf {
+        path: PathBuf,
+        #[source]
+        source: gltf::Error,
+    },
+    #[error("{} contains no triangle geometry in its scene; export the meshes as triangles", path.display())]
+    NoGeometry { path: PathBuf },
+    #[error("{}: mesh '{mesh}' is unusable: {reason}; re-export the mesh", path.display())]
+    BadPrimitive {
+        path: PathBuf,
+        mesh: String,
+        reason: String,
+    },
+    #[error("{}: image {index} is unusable: {reason}; re-encode it as PNG or JPEG", path.display())]
+    BadTexture {
+        path: PathBuf,
+        index: usize,
+        reason: String,
+    },
+    #[error("{}: node hierarchy is invalid: {reason}; fix the node tree", path.display())]
+    BadNode { path: PathBuf, reason: String },
+    #[error("invalid camera: {reason}")]
+    BadCamera { reason: String },
+    #[error("cannot write {}: {reason}", path.display())]
+    Export { path: PathBuf, reason: String },
+}
+
+/// One BLAS: all triangle primitives of one glTF mesh, merged.
+#[derive(Clone, Debug)]
+pub struct Mesh {
+    pub name: String,
+    /// Object space.
+    pub positions: Vec<[f32; 3]>,
+    /// Per vertex, unit length; area-weighted smooth normals when the file has none.
+    pub normals: Vec<[f32; 3]>,
+    /// TEXCOORD_0; zeros when absent.
+    pub uvs: Vec<[f32; 2]>,
+    /// xyz + handedness w (bitangent = cross(normal, xyz) * w); zeros when there are no UVs.
+    pub tangents: Vec<[f32; 4]>,
+    /// Three per triangle.
+    pub indices: Vec<u32>,
+    /// One per triangle, index into [`Scene::materials`].
+    pub triangle_materials: Vec<u32>,
+}
+
+impl Mesh {
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+}
+
+/// Decoded image, RGBA8 as stored in the file (no colour-space conversion).
+#[derive(Clone, Debug)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub rgba8: Vec<u8>,
+}
+
+#[derive(Clone, Debug)]
+pub struct Material {
+    pub name: String,
+    /// Linear factor.
+    pub base_color: [f32; 4],
+    /// Index into [`Scene::textures`]; sRGB-encoded data.
+    pub base_color_texture: Option<u32>,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// glTF packing: G = roughness, B = metallic.
+    pub metallic_roughness_texture: Option<u32>,
+    pub normal_texture: Option<u32>,
+    pub normal_scale: f32,
+    /// KHR_materials_specular specularFactor.
+    pub specular: f32,
+    /// KHR_materials_specular specularColorFactor.
+    pub specular_color: [f32; 3],
+    /// KHR_materials_transmission transmissionFactor.
+    pub transmission: f32,
+    /// KHR_materials_ior.
+    pub ior: f32,
+    pub double_sided: bool,
+}
+
+impl Default for Material {
+    /// The glTF 2.0 defaults, so a primitive without a material renders as the spec says.
+    fn default() -> Self {
+        Material {
+            name: "default".to_string(),
+            base_color: [1.0; 4],
+            base_color_texture: None,
+            metallic: 1.0,
+            roughness: 1.0,
+            metallic_roughness_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
+            specular: 1.0,
+            specular_color: [1.0; 3],
+            transmission: 0.0,
+            ior: 1.5,
+            double_sided: false,
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Instance {
+    pub mesh: u32,
+    /// Object to world.
+    pub transform: Mat4,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    pub meshes: Vec<Mesh>,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    pub instances: Vec<Instance>,
+    pub cameras: Vec<Camera>,
+}
+
+impl Scene {
+    /// Loads the default scene (or scene 0) of a .glb/.gltf file; see [`load`] for details.
+    pub fn load_gltf(path: &std::path::Path) -> Result<Scene, SceneError> {
+        load::load_gltf(path)
+    }
+
+    /// World-space axis-aligned bounds over all instanced vertices, `None` for an empty scene.
+    pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        let mut any = false;
+        for inst in &self.instances {
+            let Some(mesh) = self.meshes.get(inst.mesh as usize) else {
+                continue;
+            };
+            for p in &mesh.positions {
+                let w = inst.transform.transform_point3(Vec3::from(*p));
+                if w.is_finite() {
+                    lo = lo.min(w);
+                    hi = hi.max(w);
+                    any = true;
+                }
+            }
+        }
+        any.then_some((lo, hi))
+    }
+
+    /// Triangles over all instances (an instanced mesh counts once per instance).
+    pub fn triangle_count(&self) -> usize {
+        self.instances
+            .iter()
+            .filter_map(|i| self.meshes.get(i.mesh as usize))
+            .map(Mesh::triangle_count)
+            .sum()
+    }
+
+    /// Appends `material`, `mesh` (all its triangles set to that material) and one instance of
+    /// it; returns the new mesh's index.
+    pub fn add_mesh_instance(
+        &mut self,
+        mut mesh: Mesh,
+        material: Material,
+        transform: Mat4,
+    ) -> u32 {
+        let material_index = self.materials.len() as u32;
+        self.materials.push(material);
+        mesh.triangle_materials = vec![material_index; mesh.triangle_count()];
+        let mesh_index = self.meshes.len() as u32;
+        self.meshes.push(mesh);
+        self.instances.push(Instance {
+            mesh: mesh_index,
+            transform,
+        });
+        mesh_index
+    }
+}

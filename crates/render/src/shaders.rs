@@ -1,0 +1,26 @@
+//! SPIR-V of the kernels under `shaders/kernels/`, compiled by build.rs with naga.
+
+fn words(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+
+/// The path tracer.
+pub fn integrator() -> Vec<u32> {
+    words(include_bytes!(concat!(env!("OUT_DIR"), "/integrator.spv")))
+}
+
+/// Sampling probes (BSDF and environment sampling, run by the tests).
+pub fn probe() -> Vec<u32> {
+    words(include_bytes!(concat!(env!("OUT_DIR"), "/probe.spv")))
+}
+
+/// Closest-hit queries for arbitrary rays (traversal tests).
+pub fn trace_rays() -> Vec<u32> {
+    words(include_bytes!(concat!(env!("OUT_DIR"), "/trace_rays.spv")))
+}
+
+/// Number of storage-buffer bindings every kernel declares (shaders/inc/bindings.wgsl).
+pub const NUM_BINDINGS: u32 = 16;

@@ -1,0 +1,124 @@
+//! Helpers shared by the render crate's device tests.
+#![allow(dead_code)]
+
+use std::sync::{Arc, OnceLock};
+
+use glam::{Mat4, Vec3};
+use lightfarm_light::{EnvTransform, Hdri};
+use lightfarm_render::gpu_scene::{pack_scene, PackedScene};
+use lightfarm_render::scene::{shapes, Camera, Material, Scene};
+use lightfarm_render::vulkan::{DeviceRequest, GpuContext};
+use lightfarm_render::{EnvLight, RenderOutput, RenderSettings, Renderer};
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// One renderer per test binary: pipeline creation on lavapipe costs seconds.
+pub fn renderer() -> &'static Renderer {
+    static R: OnceLock<Renderer> = OnceLock::new();
+    R.get_or_init(|| {
+        Renderer::new(&DeviceRequest::Auto)
+            .expect("a Vulkan device (install libvulkan1 mesa-vulkan-drivers)")
+    })
+}
+
+pub fn ctx() -> Arc<GpuContext> {
+    renderer().context().clone()
+}
+
+pub fn material(base: f32, specular: f32) -> Material {
+    Material {
+        name: "test".into(),
+        base_color: [base, base, base, 1.0],
+        metallic: 0.0,
+        roughness: 0.5,
+        specular,
+        ..Material::default()
+    }
+}
+
+/// A diffuse sphere of radius 0.5 at the origin, albedo `albedo`, no specular layer.
+pub fn sphere_scene(albedo: f32) -> Scene {
+    let mut scene = Scene::default();
+    scene.add_mesh_instance(
+        shapes::icosphere(0.5, 5),
+        material(albedo, 0.0),
+        Mat4::IDENTITY,
+    );
+    scene
+}
+
+pub fn front_camera() -> Camera {
+    Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 30.0).expect("valid camera")
+}
+
+pub fn constant_light(value: f32) -> EnvLight {
+    EnvLight {
+        name: "constant".into(),
+        hdri: Hdri::constant(64, 32, [value; 3]),
+        transform: EnvTransform::default(),
+    }
+}
+
+pub fn render(scene: &Scene, lights: &[EnvLight], size: u32, spp: u32, seed: u32) -> RenderOutput {
+    let packed: PackedScene = pack_scene(scene).expect("pack scene");
+    let settings = RenderSettings {
+        width: size,
+        height: size,
+        spp,
+        seed,
+        max_depth: 8,
+        rr_depth: 5,
+        camera: front_camera(),
+    };
+    renderer()
+        .render(&packed, lights, &settings, &mut |_| {})
+        .expect("render")
+}
+
+/// Pearson's chi-square goodness of fit as pbrt-v4 and Mitsuba 3 run it: cells with expected
+/// count < 5 are pooled, a sample in a cell of zero expected count fails outright, and the
+/// p-value is compared against 0.01 with a Šidák correction for `tests` tests.
+pub fn chi2_test(
+    name: &str,
+    observed: &[f64],
+    expected: &[f64],
+    tests: u32,
+) -> Result<f64, String> {
+    assert_eq!(observed.len(), expected.len());
+    let mut chi2 = 0.0;
+    let mut dof = 0i64;
+    let (mut pool_o, mut pool_e) = (0.0, 0.0);
+    for (o, e) in observed.iter().zip(expected) {
+        if *e == 0.0 {
+            if *o > 0.0 {
+                return Err(format!("{name}: {o} samples in a cell of zero probability"));
+            }
+            continue;
+        }
+        if *e < 5.0 {
+            pool_o += o;
+            pool_e += e;
+        } else {
+            chi2 += (o - e) * (o - e) / e;
+            dof += 1;
+        }
+    }
+    if pool_e > 0.0 {
+        chi2 += (pool_o - pool_e) * (pool_o - pool_e) / pool_e;
+        dof += 1;
+    }
+    dof -= 1;
+    if dof < 1 {
+        return Err(format!("{name}: too few cells for a chi-square test"));
+    }
+    let p = 1.0
+        - ChiSquared::new(dof as f64)
+            .map_err(|e| e.to_string())?
+            .cdf(chi2);
+    let alpha = 1.0 - (1.0f64 - 0.01).powf(1.0 / tests as f64);
+    if p < alpha {
+        return Err(format!(
+            "{name}: chi2 = {chi2:.1} with {dof} dof, p = {p:.3e} < {alpha:.3e}"
+        ));
+    }
+    Ok(p)
+}

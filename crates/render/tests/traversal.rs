@@ -1,0 +1,193 @@
+//! The shader's two-level CWBVH traversal against obvhs' CPU traversal of the same BVHs and
+//! against brute force, on random rays: the same closest t and the same triangle.
+
+mod common;
+
+use glam::{Mat4, Quat, Vec3, Vec3A};
+use lightfarm_render::gpu_scene::{pack_scene, PackedScene};
+use lightfarm_render::probe::Probe;
+use lightfarm_render::scene::{shapes, Scene};
+use obvhs::ray::{Ray, RayHit};
+
+/// xorshift: the test's rays are reproducible without another dependency.
+struct Rand(u64);
+impl Rand {
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn dir(&mut self) -> Vec3 {
+        loop {
+            let v = Vec3::new(self.next(), self.next(), self.next()) * 2.0 - Vec3::ONE;
+            let l = v.length();
+            if l > 0.05 && l <= 1.0 {
+                return v / l;
+            }
+        }
+    }
+}
+
+fn test_scene() -> Scene {
+    let head = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets/heads/LeePerrySmith_textured.glb");
+    let mut scene = if head.exists() {
+        Scene::load_gltf(&head).expect("load head")
+    } else {
+        eprintln!("{} missing: testing on spheres only", head.display());
+        Scene::default()
+    };
+    let m = common::material(0.5, 0.5);
+    // Two instances of one mesh (instancing), one rotated and non-uniformly scaled.
+    let mesh = scene.add_mesh_instance(
+        shapes::icosphere(0.1, 3),
+        m.clone(),
+        Mat4::from_translation(Vec3::new(0.15, 0.05, 0.1)),
+    );
+    scene.instances.push(lightfarm_render::scene::Instance {
+        mesh,
+        transform: Mat4::from_scale_rotation_translation(
+            Vec3::new(1.0, 0.5, 2.0),
+            Quat::from_rotation_y(0.7),
+            Vec3::new(-0.2, -0.1, 0.0),
+        ),
+    });
+    scene.add_mesh_instance(
+        shapes::quad(0.5, 0.5),
+        m,
+        Mat4::from_translation(Vec3::new(0.0, 0.0, -0.2)),
+    );
+    scene
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct RefHit {
+    t: f32,
+    instance: u32, // scene instance index
+    blas: u32,
+    tri: u32,
+}
+
+fn cpu_two_level(
+    packed: &PackedScene,
+    scene: &Scene,
+    o: Vec3,
+    d: Vec3,
+    brute: bool,
+) -> Option<RefHit> {
+    let mut best: Option<RefHit> = None;
+    for (gi, &si) in packed.instance_order.iter().enumerate() {
+        let bi = packed.instance_blas[gi];
+        let blas = &packed.blas[bi as usize];
+        let inv = scene.instances[si as usize].transform.inverse();
+        let ray = Ray::new(
+            Vec3A::from(inv.transform_point3(o)),
+            Vec3A::from(inv.transform_vector3(d)),
+            0.0,
+            f32::INFINITY,
+        );
+        let tmax = best.map(|b| b.t).unwrap_or(f32::INFINITY);
+        let mut found: Option<(f32, u32)> = None;
+        if brute {
+            for (k, tri) in blas.triangles.iter().enumerate() {
+                let t = tri.intersect(&ray);
+                if t < tmax && found.is_none_or(|f| t < f.0) {
+                    found = Some((t, k as u32));
+                }
+            }
+        } else {
+            let mut hit = RayHit::none();
+            let r = Ray { tmax, ..ray };
+            if blas.bvh.ray_traverse(r, &mut hit, |ray, id| {
+                blas.triangles[blas.bvh.primitive_indices[id] as usize].intersect(ray)
+            }) {
+                found = Some((hit.t, blas.bvh.primitive_indices[hit.primitive_id as usize]));
+            }
+        }
+        if let Some((t, tri)) = found {
+            best = Some(RefHit {
+                t,
+                instance: si,
+                blas: bi,
+                tri,
+            });
+        }
+    }
+    best
+}
+
+#[test]
+fn gpu_traversal_matches_obvhs_and_brute_force() {
+    let scene = test_scene();
+    let packed = pack_scene(&scene).expect("pack");
+    let (min, max) = scene.world_bounds().expect("bounds");
+    let centre = (min + max) * 0.5;
+    let radius = (max - min).length();
+    let mut rng = Rand(0x9e3779b97f4a7c15);
+    let mut rays = Vec::new();
+    for i in 0..20_000 {
+        // Half aimed at points inside the bounds from outside, half from inside in any direction.
+        let (o, d) = if i % 2 == 0 {
+            let o = centre + rng.dir() * radius;
+            let target = min + (max - min) * Vec3::new(rng.next(), rng.next(), rng.next());
+            (o, (target - o).normalize())
+        } else {
+            (
+                min + (max - min) * Vec3::new(rng.next(), rng.next(), rng.next()),
+                rng.dir(),
+            )
+        };
+        rays.push((o, d));
+    }
+    let probe = Probe::new(&common::ctx()).expect("probe");
+    let gpu = probe
+        .trace(
+            &packed,
+            &rays
+                .iter()
+                .map(|(o, d)| (o.to_array(), d.to_array(), 0.0, f32::INFINITY))
+                .collect::<Vec<_>>(),
+        )
+        .expect("trace");
+    let (mut hits, mut mismatches) = (0, Vec::new());
+    for (k, ((o, d), g)) in rays.iter().zip(&gpu).enumerate() {
+        let cpu = cpu_two_level(&packed, &scene, *o, *d, false);
+        let brute = cpu_two_level(&packed, &scene, *o, *d, true);
+        assert_eq!(
+            cpu, brute,
+            "ray {k}: obvhs traversal and brute force disagree"
+        );
+        let g = g.map(|h| {
+            let (blas, tri) = packed.slot_triangle[h.slot as usize];
+            RefHit {
+                t: h.t,
+                instance: packed.instance_order[h.instance as usize],
+                blas,
+                tri,
+            }
+        });
+        match (g, cpu) {
+            (None, None) => {}
+            (Some(g), Some(c))
+                if g.instance == c.instance
+                    && g.tri == c.tri
+                    && (g.t - c.t).abs() <= 1e-5 * c.t.max(1.0) =>
+            {
+                hits += 1
+            }
+            other => mismatches.push((k, other)),
+        }
+    }
+    assert!(
+        hits > 5_000,
+        "only {hits} rays hit: the test scene is not being exercised"
+    );
+    assert!(
+        mismatches.is_empty(),
+        "{} of {} rays differ, first: {:?}",
+        mismatches.len(),
+        rays.len(),
+        &mismatches[..mismatches.len().min(5)]
+    );
+}

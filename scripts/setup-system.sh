@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Makes sure the system packages lightfarm needs are present: the Vulkan loader and Mesa's
+# lavapipe CPU driver (so rendering works on machines with no GPU). Installs them when run as
+# root; otherwise prints the exact command. Sourced by scripts/test.sh and scripts/demo.sh.
+set -euo pipefail
+
+missing=()
+ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1' || missing+=(libvulkan1)
+ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1 || missing+=(mesa-vulkan-drivers)
+if ! command -v cargo >/dev/null 2>&1; then
+    echo "error: cargo not found: install Rust from https://rustup.rs (stable, 1.85 or newer)" >&2
+    exit 1
+fi
+if [ ${#missing[@]} -gt 0 ]; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
+        echo "installing ${missing[*]} (Vulkan loader + lavapipe CPU driver)..." >&2
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get update -qq
+        apt-get install -y -qq "${missing[@]}" >/dev/null
+    else
+        echo "error: missing system packages: ${missing[*]}" >&2
+        echo "run: sudo apt-get install -y libvulkan1 mesa-vulkan-drivers" >&2
+        exit 1
+    fi
+fi
+# The Vulkan loader and Mesa want a runtime dir; CI and containers often have none.
+if [ -z "${XDG_RUNTIME_DIR:-}" ]; then
+    export XDG_RUNTIME_DIR="${TMPDIR:-/tmp}/lightfarm-runtime-$(id -u)"
+    mkdir -p "$XDG_RUNTIME_DIR" && chmod 700 "$XDG_RUNTIME_DIR"
+fi
+# A persistent target dir outside the clone: rebuilds in a fresh clone stay incremental.
+export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/lightfarm-target}"

@@ -1,0 +1,90 @@
+// Every kernel of the renderer sees the same 16 storage-buffer bindings (set 0), declared once here
+// and mirrored by `crates/render/src/gpu_types.rs`. A kernel that does not use a binding still gets a
+// (dummy) buffer bound there, which keeps the host side uniform.
+
+struct Params {
+    width: u32,
+    height: u32,
+    spp: u32,
+    seed: u32,
+    max_depth: u32,
+    rr_depth: u32,
+    num_lights: u32,
+    tlas_node_offset: u32, // NO_NODE when the scene is empty
+    cam_pos: vec4<f32>,
+    cam_right: vec4<f32>, // scaled by tan(fov/2) * aspect
+    cam_up: vec4<f32>,    // scaled by tan(fov/2)
+    cam_fwd: vec4<f32>,
+};
+
+struct Instance {
+    obj_to_world: mat4x4<f32>, // column-major affine
+    world_to_obj: mat4x4<f32>,
+    node_offset: u32,          // first CWBVH node of this instance's BLAS in `nodes`
+    tri_offset: u32,           // first triangle (leaf order) of the BLAS in tri_pos / tri_attr
+    flags: u32,
+    _pad: u32,
+};
+
+struct Material {
+    base_color: vec4<f32>,
+    // metallic, roughness, specular, transmission
+    mrst: vec4<f32>,
+    // specular colour rgb, ior
+    spec_color_ior: vec4<f32>,
+    // base texture, metallic-roughness texture, normal texture, flags (NO_TEX when absent)
+    tex: vec4<u32>,
+    // normal scale, unused x3
+    extra: vec4<f32>,
+};
+
+struct EnvDesc {
+    width: u32,
+    height: u32,
+    texel_offset: u32,    // into env_texels
+    cond_func_offset: u32, // into env_dist: height rows of `width` values
+    cond_cdf_offset: u32,  // height rows of `width + 1` values
+    marg_func_offset: u32, // `height` values (= each row's integral)
+    marg_cdf_offset: u32,  // `height + 1` values
+    flip: u32,
+    cos_rot: f32,
+    sin_rot: f32,
+    marg_integral: f32,
+    _pad: f32,
+};
+
+struct Push {
+    sample_start: u32,
+    sample_count: u32,
+    light: u32,
+    write_aux: u32,
+    mode: u32,   // probe / test kernels: what to run
+    count: u32,  // probe / test kernels: how many items
+    _pad0: u32,
+    _pad1: u32,
+};
+
+const NO_NODE: u32 = 0xffffffffu;
+const NO_TEX: u32 = 0xffffffffu;
+const MAT_FLAG_LENS: u32 = 1u;
+const PI: f32 = 3.14159265358979;
+const INV_PI: f32 = 0.318309886183791;
+
+@group(0) @binding(0) var<storage, read> params: Params;
+@group(0) @binding(1) var<storage, read> nodes: array<u32>;
+@group(0) @binding(2) var<storage, read> tri_pos: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> tri_attr: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> instances: array<Instance>;
+@group(0) @binding(5) var<storage, read> materials: array<Material>;
+@group(0) @binding(6) var<storage, read> tex_data: array<u32>;
+@group(0) @binding(7) var<storage, read> tex_desc: array<vec4<u32>>;
+@group(0) @binding(8) var<storage, read> env_texels: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read> env_dist: array<f32>;
+@group(0) @binding(10) var<storage, read> env_desc: array<EnvDesc>;
+@group(0) @binding(11) var<storage, read_write> accum_lit: array<vec4<f32>>;
+@group(0) @binding(12) var<storage, read_write> accum_aux: array<vec4<f32>>;
+@group(0) @binding(13) var<storage, read_write> counters: array<atomic<u32>>;
+@group(0) @binding(14) var<storage, read> probe_in: array<vec4<f32>>;
+@group(0) @binding(15) var<storage, read_write> probe_out: array<vec4<f32>>;
+
+var<immediate> pc: Push;

@@ -1,0 +1,207 @@
+// Surface scattering for glTF metallic-roughness materials: Lambert diffuse + GGX specular
+// (roughness r -> α = r², visible-normal sampling with spherical caps, Dupuy & Benyoub 2023),
+// metals through F0 = base colour, KHR_materials_specular (specular 0 => pure diffuse), and a
+// smooth dielectric for transmissive materials (eyeglass lenses). All directions are in the local
+// shading frame (z = normal). `f` values include the cosine of the incoming direction.
+
+struct Surface {
+    base: vec3<f32>,
+    metallic: f32,
+    alpha: f32,
+    specular: f32,
+    spec_color: vec3<f32>,
+    transmission: f32,
+    ior: f32,
+};
+
+struct BsdfEval {
+    f_cos: vec3<f32>, // f(wo, wi) * |cos θi|
+    pdf: f32,          // solid-angle pdf of sampling wi given wo
+};
+
+struct BsdfSample {
+    wi: vec3<f32>,
+    weight: vec3<f32>, // f * cos / pdf (delta lobes: the lobe's weight)
+    pdf: f32,
+    is_delta: bool,
+    valid: bool,
+};
+
+fn is_dielectric_delta(s: Surface) -> bool {
+    return s.transmission > 0.5;
+}
+
+// --- GGX (isotropic) ---
+
+fn ggx_d(m: vec3<f32>, a: f32) -> f32 {
+    let a2 = a * a;
+    let c2 = m.z * m.z;
+    let d = c2 * (a2 - 1.0) + 1.0;
+    return a2 / (PI * d * d);
+}
+
+fn ggx_lambda(w: vec3<f32>, a: f32) -> f32 {
+    let c2 = w.z * w.z;
+    if (c2 >= 1.0) {
+        return 0.0;
+    }
+    let t2 = (1.0 - c2) / max(c2, 1e-12);
+    return (sqrt(1.0 + a * a * t2) - 1.0) * 0.5;
+}
+
+fn ggx_g1(w: vec3<f32>, a: f32) -> f32 {
+    return 1.0 / (1.0 + ggx_lambda(w, a));
+}
+
+fn ggx_g2(wo: vec3<f32>, wi: vec3<f32>, a: f32) -> f32 {
+    return 1.0 / (1.0 + ggx_lambda(wo, a) + ggx_lambda(wi, a));
+}
+
+// Visible normal of the upper hemisphere, wo.z > 0.
+fn ggx_sample_vndf(wo: vec3<f32>, a: f32, u: vec2<f32>) -> vec3<f32> {
+    let wh = normalize(vec3<f32>(a * wo.x, a * wo.y, wo.z));
+    let phi = 2.0 * PI * u.x;
+    let z = (1.0 - u.y) * (1.0 + wh.z) - wh.z;
+    let sin_theta = sqrt(clamp(1.0 - z * z, 0.0, 1.0));
+    let c = vec3<f32>(sin_theta * cos(phi), sin_theta * sin(phi), z);
+    let h = c + wh;
+    return normalize(vec3<f32>(a * h.x, a * h.y, max(h.z, 0.0)));
+}
+
+// pdf of a reflected direction sampled through the VNDF: D_wo(m) / (4 wo·m) = G1(wo) D(m) / (4 wo.z).
+fn ggx_reflection_pdf(wo: vec3<f32>, m: vec3<f32>, a: f32) -> f32 {
+    return ggx_g1(wo, a) * ggx_d(m, a) / (4.0 * wo.z);
+}
+
+// --- Fresnel ---
+
+fn schlick(f0: vec3<f32>, f90: vec3<f32>, c: f32) -> vec3<f32> {
+    let m = clamp(1.0 - c, 0.0, 1.0);
+    let m2 = m * m;
+    return f0 + (f90 - f0) * (m2 * m2 * m);
+}
+
+// Unpolarised Fresnel reflectance of a smooth dielectric; cos_i signed (negative = from inside).
+fn fresnel_dielectric(cos_i_in: f32, eta_in: f32) -> f32 {
+    var cos_i = clamp(cos_i_in, -1.0, 1.0);
+    var eta = eta_in;
+    if (cos_i < 0.0) {
+        eta = 1.0 / eta;
+        cos_i = -cos_i;
+    }
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.0) {
+        return 1.0;
+    }
+    let cos_t = sqrt(max(0.0, 1.0 - sin2_t));
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return 0.5 * (r_parl * r_parl + r_perp * r_perp);
+}
+
+// --- the layered metallic-roughness model ---
+
+fn surface_f0(s: Surface) -> vec3<f32> {
+    let r = (s.ior - 1.0) / (s.ior + 1.0);
+    let f0_dielectric = min(vec3<f32>(r * r) * s.spec_color, vec3<f32>(1.0)) * s.specular;
+    return mix(f0_dielectric, s.base, s.metallic);
+}
+
+fn surface_f90(s: Surface) -> vec3<f32> {
+    return vec3<f32>(mix(s.specular, 1.0, s.metallic));
+}
+
+fn diffuse_color(s: Surface) -> vec3<f32> {
+    return s.base * (1.0 - s.metallic);
+}
+
+// Probability of picking the specular lobe: its Fresnel weight at the viewing angle against the
+// diffuse weight, so that neither lobe is starved.
+fn spec_probability(s: Surface, wo: vec3<f32>) -> f32 {
+    let fs = luminance(schlick(surface_f0(s), surface_f90(s), wo.z));
+    let fd = luminance(diffuse_color(s)) * (1.0 - max3(schlick(surface_f0(s), surface_f90(s), wo.z)));
+    if (fs <= 0.0) {
+        return 0.0;
+    }
+    if (fd <= 0.0) {
+        return 1.0;
+    }
+    return clamp(fs / (fs + fd), 0.1, 0.9);
+}
+
+fn bsdf_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> BsdfEval {
+    var out = BsdfEval(vec3<f32>(0.0), 0.0);
+    if (is_dielectric_delta(s) || wo.z <= 0.0 || wi.z <= 0.0) {
+        return out;
+    }
+    let p_spec = spec_probability(s, wo);
+    let f0 = surface_f0(s);
+    let f90 = surface_f90(s);
+    // Diffuse, attenuated by the energy the specular layer reflects at the viewing angle.
+    let kd = diffuse_color(s) * (vec3<f32>(1.0) - schlick(f0, f90, wo.z) * (1.0 - s.metallic));
+    out.f_cos = kd * INV_PI * wi.z;
+    out.pdf = (1.0 - p_spec) * wi.z * INV_PI;
+    if (p_spec > 0.0) {
+        let m = normalize(wo + wi);
+        let a = max(s.alpha, 1e-4);
+        let d = ggx_d(m, a);
+        let g = ggx_g2(wo, wi, a);
+        let f = schlick(f0, f90, dot(wo, m));
+        out.f_cos += f * (d * g / (4.0 * wo.z));
+        out.pdf += p_spec * ggx_reflection_pdf(wo, m, a) / 1.0;
+    }
+    return out;
+}
+
+fn bsdf_sample(s: Surface, wo: vec3<f32>, u_lobe: f32, u: vec2<f32>) -> BsdfSample {
+    var out = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false);
+    if (is_dielectric_delta(s)) {
+        let f = fresnel_dielectric(wo.z, s.ior);
+        if (u_lobe < f) {
+            out.wi = vec3<f32>(-wo.x, -wo.y, wo.z);
+            out.weight = vec3<f32>(1.0);
+            out.pdf = f;
+        } else {
+            // Refraction; radiance is scaled by 1/η² (pbrt's radiance transport mode).
+            var eta = s.ior;
+            var n = vec3<f32>(0.0, 0.0, 1.0);
+            var cos_i = wo.z;
+            if (cos_i < 0.0) {
+                eta = 1.0 / eta;
+                n = -n;
+                cos_i = -cos_i;
+            }
+            let sin2_t = max(0.0, 1.0 - cos_i * cos_i) / (eta * eta);
+            let cos_t = sqrt(max(0.0, 1.0 - sin2_t));
+            out.wi = -wo / eta + (cos_i / eta - cos_t) * n;
+            out.weight = vec3<f32>(1.0 / (eta * eta));
+            out.pdf = 1.0 - f;
+        }
+        out.is_delta = true;
+        out.valid = true;
+        return out;
+    }
+    if (wo.z <= 0.0) {
+        return out;
+    }
+    let p_spec = spec_probability(s, wo);
+    var wi: vec3<f32>;
+    if (u_lobe < p_spec) {
+        let m = ggx_sample_vndf(wo, max(s.alpha, 1e-4), u);
+        wi = reflect(-wo, m);
+    } else {
+        wi = sample_cosine_hemisphere(u);
+    }
+    if (wi.z <= 0.0) {
+        return out;
+    }
+    let e = bsdf_eval(s, wo, wi);
+    if (e.pdf <= 0.0) {
+        return out;
+    }
+    out.wi = wi;
+    out.pdf = e.pdf;
+    out.weight = e.f_cos / e.pdf;
+    out.valid = true;
+    return out;
+}

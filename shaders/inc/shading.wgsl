@@ -1,0 +1,121 @@
+// From a traversal hit to what the integrator shades: world position, geometric and shading
+// normals (with normal mapping), and the material's parameters at the hit (with textures).
+
+struct ShadingPoint {
+    p: vec3<f32>,
+    ng: vec3<f32>,      // geometric normal, world space, unit, facing the incoming ray
+    frame: Frame,       // shading frame (z = shading normal, same side as ng)
+    material: u32,
+    flags: u32,         // material flags (MAT_FLAG_LENS)
+    surface: Surface,
+    albedo: vec3<f32>,  // base colour at the hit (the albedo pass)
+};
+
+fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
+    let lo = c / 12.92;
+    let hi = pow((c + vec3<f32>(0.055)) / 1.055, vec3<f32>(2.4));
+    return select(hi, lo, c <= vec3<f32>(0.04045));
+}
+
+fn unpack_rgba8(w: u32) -> vec4<f32> {
+    return vec4<f32>(f32(w & 0xffu), f32((w >> 8u) & 0xffu), f32((w >> 16u) & 0xffu), f32(w >> 24u)) / 255.0;
+}
+
+fn texel_fetch(d: vec4<u32>, x: i32, y: i32) -> vec4<f32> {
+    let w = i32(d.y);
+    let h = i32(d.z);
+    let xi = ((x % w) + w) % w;
+    let yi = ((y % h) + h) % h;
+    return unpack_rgba8(tex_data[d.x + u32(yi * w + xi)]);
+}
+
+// Bilinear lookup with repeat wrapping (the glTF default sampler).
+fn texture_sample(index: u32, uv: vec2<f32>) -> vec4<f32> {
+    let d = tex_desc[index];
+    let st = uv * vec2<f32>(f32(d.y), f32(d.z)) - vec2<f32>(0.5);
+    let fl = floor(st);
+    let fr = st - fl;
+    let x = i32(fl.x);
+    let y = i32(fl.y);
+    let a = mix(texel_fetch(d, x, y), texel_fetch(d, x + 1, y), fr.x);
+    let b = mix(texel_fetch(d, x, y + 1), texel_fetch(d, x + 1, y + 1), fr.x);
+    return mix(a, b, fr.y);
+}
+
+fn shade_hit(ray: Ray, hit: Hit) -> ShadingPoint {
+    let inst = instances[hit.instance];
+    let slot = hit.tri;
+    let a0 = tri_attr[slot * TRI_ATTR_VEC4S];
+    let a1 = tri_attr[slot * TRI_ATTR_VEC4S + 1u];
+    let a2 = tri_attr[slot * TRI_ATTR_VEC4S + 2u];
+    let a3 = tri_attr[slot * TRI_ATTR_VEC4S + 3u];
+    let a4 = tri_attr[slot * TRI_ATTR_VEC4S + 4u];
+    let w = 1.0 - hit.u - hit.v;
+    let uv = vec2<f32>(a0.w, a1.w) * w + vec2<f32>(a2.w, a3.x) * hit.u + a3.yz * hit.v;
+    let mat_id = bitcast<u32>(a3.w);
+    let mat = materials[mat_id];
+
+    let v0 = tri_pos[slot * 3u].xyz;
+    let v1 = tri_pos[slot * 3u + 1u].xyz;
+    let v2 = tri_pos[slot * 3u + 2u].xyz;
+    let p_obj = v0 * w + v1 * hit.u + v2 * hit.v;
+    let p = transform_point(inst.obj_to_world, p_obj);
+
+    // Normals transform with the inverse transpose: n_world = transpose(world_to_obj) * n_obj.
+    let nt = transpose(inst.world_to_obj);
+    var ng = normalize(transform_dir(nt, cross(v1 - v0, v2 - v0)));
+    var ns_obj = a0.xyz * w + a1.xyz * hit.u + a2.xyz * hit.v;
+    if (dot(ns_obj, ns_obj) < 1e-12) {
+        ns_obj = cross(v1 - v0, v2 - v0);
+    }
+    var ns = normalize(transform_dir(nt, ns_obj));
+    let tangent = normalize(transform_dir(inst.obj_to_world, a4.xyz + vec3<f32>(1e-20)));
+
+    // Face the incoming ray; the shading normal follows the geometric side.
+    let from_back = dot(ng, ray.dir) > 0.0;
+    if (from_back) {
+        ng = -ng;
+    }
+    if (dot(ns, ng) < 0.0) {
+        ns = -ns;
+    }
+
+    var frame = frame_from_normal_tangent(ns, tangent);
+    if (mat.tex.z != NO_TEX && dot(a4.xyz, a4.xyz) > 0.0) {
+        let t = texture_sample(mat.tex.z, uv).xyz * 2.0 - vec3<f32>(1.0);
+        let sign = select(1.0, -1.0, a4.w < 0.0);
+        let tn = vec3<f32>(t.xy * mat.extra.x, t.z);
+        let mapped = normalize(frame.t * tn.x + frame.b * sign * tn.y + frame.n * max(tn.z, 1e-3));
+        if (dot(mapped, ng) > 0.0) {
+            frame = frame_from_normal_tangent(mapped, frame.t);
+        }
+    }
+
+    var base = mat.base_color.xyz;
+    if (mat.tex.x != NO_TEX) {
+        base *= srgb_to_linear(texture_sample(mat.tex.x, uv).xyz);
+    }
+    var metallic = mat.mrst.x;
+    var roughness = mat.mrst.y;
+    if (mat.tex.y != NO_TEX) {
+        let mr = texture_sample(mat.tex.y, uv);
+        roughness *= mr.y;
+        metallic *= mr.z;
+    }
+    let alpha = max(roughness * roughness, 1e-3);
+    // Frames face the incoming ray, so a dielectric learns from the side it was hit on whether the
+    // ray leaves the (outward-facing) surface: then the relative index of refraction inverts.
+    var ior = max(mat.spec_color_ior.w, 1.0001);
+    if (from_back && mat.mrst.w > 0.5) {
+        ior = 1.0 / ior;
+    }
+    let surface = Surface(base, clamp(metallic, 0.0, 1.0), alpha, mat.mrst.z, mat.spec_color_ior.xyz, mat.mrst.w, ior);
+    return ShadingPoint(p, ng, frame, mat_id, mat.tex.w, surface, base);
+}
+
+// Offsets a ray origin off the surface along the geometric normal, scaled with the magnitude of
+// the position so float precision is respected away from the origin.
+fn offset_origin(p: vec3<f32>, ng: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
+    let scale = 1e-4 * (1.0 + max3(abs(p)));
+    return p + ng * select(-scale, scale, dot(dir, ng) > 0.0);
+}
