@@ -45,15 +45,14 @@ import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-ASSETS = os.environ.get("LIGHTFARM_ASSETS", os.path.join(HERE, "..", "..", "shared", "assets"))
-if not os.path.isdir(ASSETS):
-    ASSETS = "/work/shared/assets"
+# The repository's built-in asset pack (the same files lightfarm renders).
+ASSETS = os.environ.get("LIGHTFARM_ASSETS", os.path.join(HERE, "..", "assets"))
 BENCH_DIR = os.environ.get("LIGHTFARM_BENCH_DIR", os.path.expanduser("~/.cache/lightfarm-bench"))
 
 SCENE_DEFAULTS = {
     "sphere": {"env": "hdri/rooitou_park_1k.hdr"},
     "head": {"env": "hdri/studio_small_03_1k.hdr",
-             "mesh": "heads/LeePerrySmith/LeePerrySmith_textured.glb"},
+             "mesh": "heads/LeePerrySmith_textured.glb"},
 }
 FOV_DEG = 30.0
 # Mitsuba's envmap already uses lightfarm's lat-long convention (see module docstring), so no

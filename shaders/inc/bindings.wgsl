@@ -11,6 +11,10 @@ struct Params {
     rr_depth: u32,
     num_lights: u32,
     tlas_node_offset: u32, // NO_NODE when the scene is empty
+    scene_flags: u32,      // SCENE_HAS_LENS
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
     cam_pos: vec4<f32>,
     cam_right: vec4<f32>, // scaled by tan(fov/2) * aspect
     cam_up: vec4<f32>,    // scaled by tan(fov/2)
@@ -67,11 +71,12 @@ struct Push {
 const NO_NODE: u32 = 0xffffffffu;
 const NO_TEX: u32 = 0xffffffffu;
 const MAT_FLAG_LENS: u32 = 1u;
+const SCENE_HAS_LENS: u32 = 1u;
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.318309886183791;
 
 @group(0) @binding(0) var<storage, read> params: Params;
-@group(0) @binding(1) var<storage, read> nodes: array<u32>;
+@group(0) @binding(1) var<storage, read> nodes: array<vec4<u32>>;
 @group(0) @binding(2) var<storage, read> tri_pos: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> tri_attr: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> instances: array<Instance>;

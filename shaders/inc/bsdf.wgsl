@@ -148,7 +148,7 @@ fn bsdf_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> BsdfEval {
         let g = ggx_g2(wo, wi, a);
         let f = schlick(f0, f90, dot(wo, m));
         out.f_cos += f * (d * g / (4.0 * wo.z));
-        out.pdf += p_spec * ggx_reflection_pdf(wo, m, a) / 1.0;
+        out.pdf += p_spec * ggx_reflection_pdf(wo, m, a);
     }
     return out;
 }

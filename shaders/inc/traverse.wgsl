@@ -3,10 +3,10 @@
 // as-is; the algorithm is Ylitie et al. 2017, with the node-group/primitive-group stack of obvhs'
 // CPU traversal so that the GPU and CPU visit the same leaves.
 //
-// Node words: 0-2 p.xyz, 3 e[0..3] | imask << 24, 4 child_base_idx, 5 primitive_base_idx,
-// 6-7 child_meta[8], 8-9 child_min_x, 10-11 child_max_x, 12-13 min_y, 14-15 max_y, 16-17 min_z, 18-19 max_z.
+// A node is 5 vec4<u32>: (p.xyz, e[0..3] | imask << 24), (child_base_idx, primitive_base_idx,
+// child_meta[0..4], child_meta[4..8]), (min_x lo/hi, max_x lo/hi), (min_y ...), (min_z ...).
 
-const NODE_WORDS: u32 = 20u;
+const NODE_VEC4S: u32 = 5u;
 const TRI_ATTR_VEC4S: u32 = 5u;
 const STACK_SIZE: u32 = 32u;
 
@@ -44,53 +44,57 @@ fn safe_inverse(x: f32) -> f32 {
     return 1.0 / x;
 }
 
-fn byte_of(w: u32, j: u32) -> f32 {
-    return f32((w >> (j * 8u)) & 0xffu);
-}
+struct NodeHit {
+    hit_mask: u32,
+    child_base: u32,
+    prim_base: u32,
+    imask: u32,
+};
 
-// Returns the hit mask of obvhs' `intersect_ray`: inner children in the high byte (by traversal
-// priority), leaf primitive bits (unary counts shifted by their offset) in the low 24 bits.
-fn intersect_node(base: u32, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, tmax: f32, oct_inv4: u32) -> u32 {
-    let p = vec3<f32>(bitcast<f32>(nodes[base]), bitcast<f32>(nodes[base + 1u]), bitcast<f32>(nodes[base + 2u]));
-    let w3 = nodes[base + 3u];
+// Tests the ray against the 8 children of node `node` (obvhs' `intersect_ray`, four children at a
+// time): inner children land in the high byte of the mask by traversal priority, leaf primitive
+// bits (unary counts shifted by their offset) in the low 24 bits.
+fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, tmax: f32, oct_inv4: u32) -> NodeHit {
+    let base = node * NODE_VEC4S;
+    let v0 = nodes[base];
+    let v1 = nodes[base + 1u];
+    let v2 = nodes[base + 2u];
+    let v3 = nodes[base + 3u];
+    let v4 = nodes[base + 4u];
+    let p = bitcast<vec3<f32>>(v0.xyz);
     let extent = vec3<f32>(
-        bitcast<f32>((w3 & 0xffu) << 23u),
-        bitcast<f32>(((w3 >> 8u) & 0xffu) << 23u),
-        bitcast<f32>(((w3 >> 16u) & 0xffu) << 23u),
+        bitcast<f32>((v0.w & 0xffu) << 23u),
+        bitcast<f32>(((v0.w >> 8u) & 0xffu) << 23u),
+        bitcast<f32>(((v0.w >> 16u) & 0xffu) << 23u),
     );
     let adj_inv = extent * inv_dir;
     let adj_orig = (p - origin) * inv_dir;
     let neg = inv_dir < vec3<f32>(0.0);
     var hit_mask = 0u;
     for (var half = 0u; half < 2u; half++) {
-        let meta4 = nodes[base + 6u + half];
+        let meta4 = v1[2u + half];
         let is_inner4 = (meta4 & (meta4 << 1u)) & 0x10101010u;
         let inner_mask4 = (is_inner4 >> 4u) * 0xffu;
-        let bit_index4 = (meta4 ^ (oct_inv4 & inner_mask4)) & 0x1f1f1f1fu;
-        let child_bits4 = (meta4 >> 5u) & 0x07070707u;
-        let lo_x = nodes[base + 8u + half];
-        let hi_x = nodes[base + 10u + half];
-        let lo_y = nodes[base + 12u + half];
-        let hi_y = nodes[base + 14u + half];
-        let lo_z = nodes[base + 16u + half];
-        let hi_z = nodes[base + 18u + half];
-        for (var j = 0u; j < 4u; j++) {
-            let qlo = vec3<f32>(byte_of(lo_x, j), byte_of(lo_y, j), byte_of(lo_z, j));
-            let qhi = vec3<f32>(byte_of(hi_x, j), byte_of(hi_y, j), byte_of(hi_z, j));
-            let near = select(qlo, qhi, neg);
-            let far = select(qhi, qlo, neg);
-            let t0 = near * adj_inv + adj_orig;
-            let t1 = far * adj_inv + adj_orig;
-            let tn = max(max3(t0), tmin);
-            let tf = min(min3(t1), tmax);
-            if (tn <= tf) {
-                let child_bits = (child_bits4 >> (j * 8u)) & 0xffu;
-                let bit_index = (bit_index4 >> (j * 8u)) & 0xffu;
-                hit_mask |= child_bits << bit_index;
-            }
-        }
+        let bit_index4 = unpack4xU8((meta4 ^ (oct_inv4 & inner_mask4)) & 0x1f1f1f1fu);
+        let child_bits4 = unpack4xU8((meta4 >> 5u) & 0x07070707u);
+        let lo_x = vec4<f32>(unpack4xU8(v2[half]));
+        let hi_x = vec4<f32>(unpack4xU8(v2[2u + half]));
+        let lo_y = vec4<f32>(unpack4xU8(v3[half]));
+        let hi_y = vec4<f32>(unpack4xU8(v3[2u + half]));
+        let lo_z = vec4<f32>(unpack4xU8(v4[half]));
+        let hi_z = vec4<f32>(unpack4xU8(v4[2u + half]));
+        let t0x = select(lo_x, hi_x, neg.x) * adj_inv.x + adj_orig.x;
+        let t1x = select(hi_x, lo_x, neg.x) * adj_inv.x + adj_orig.x;
+        let t0y = select(lo_y, hi_y, neg.y) * adj_inv.y + adj_orig.y;
+        let t1y = select(hi_y, lo_y, neg.y) * adj_inv.y + adj_orig.y;
+        let t0z = select(lo_z, hi_z, neg.z) * adj_inv.z + adj_orig.z;
+        let t1z = select(hi_z, lo_z, neg.z) * adj_inv.z + adj_orig.z;
+        let tn = max(max(t0x, t0y), max(t0z, vec4<f32>(tmin)));
+        let tf = min(min(t1x, t1y), min(t1z, vec4<f32>(tmax)));
+        let bits = select(vec4<u32>(0u), child_bits4 << bit_index4, tn <= tf);
+        hit_mask |= bits.x | bits.y | bits.z | bits.w;
     }
-    return hit_mask;
+    return NodeHit(hit_mask, v1.x, v1.y, v0.w >> 24u);
 }
 
 // Möller–Trumbore in the exact formulation of obvhs' `Triangle::intersect`, so that the CPU
@@ -162,14 +166,12 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
             }
             let slot_index = (offset - 24u) ^ (oct & 0xffu);
             let relative = countOneBits(hits_imask & ~(0xffffffffu << slot_index));
-            let node = inst.node_offset + current.x + relative;
-            let base = node * NODE_WORDS;
             let tmax = select((*best).t, 3.4e38, (*best).t < 0.0);
-            let hit_mask = intersect_node(base, origin, inv_dir, tmin, tmax, oct);
-            current.x = nodes[base + 4u];
-            prims.x = nodes[base + 5u];
-            current.y = (hit_mask & 0xff000000u) | (nodes[base + 3u] >> 24u);
-            prims.y = hit_mask & 0x00ffffffu;
+            let nh = intersect_node(inst.node_offset + current.x + relative, origin, inv_dir, tmin, tmax, oct);
+            current.x = nh.child_base;
+            prims.x = nh.prim_base;
+            current.y = (nh.hit_mask & 0xff000000u) | nh.imask;
+            prims.y = nh.hit_mask & 0x00ffffffu;
         } else {
             current = vec2<u32>(0u, 0u);
         }
@@ -224,13 +226,12 @@ fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
             }
             let slot_index = (offset - 24u) ^ (oct & 0xffu);
             let relative = countOneBits(hits_imask & ~(0xffffffffu << slot_index));
-            let base = (params.tlas_node_offset + current.x + relative) * NODE_WORDS;
             let tmax = select(best.t, 3.4e38, best.t < 0.0);
-            let hit_mask = intersect_node(base, ray.origin, inv_dir, ray.tmin, tmax, oct);
-            current.x = nodes[base + 4u];
-            prims.x = nodes[base + 5u];
-            current.y = (hit_mask & 0xff000000u) | (nodes[base + 3u] >> 24u);
-            prims.y = hit_mask & 0x00ffffffu;
+            let nh = intersect_node(params.tlas_node_offset + current.x + relative, ray.origin, inv_dir, ray.tmin, tmax, oct);
+            current.x = nh.child_base;
+            prims.x = nh.prim_base;
+            current.y = (nh.hit_mask & 0xff000000u) | nh.imask;
+            prims.y = nh.hit_mask & 0x00ffffffu;
         } else {
             current = vec2<u32>(0u, 0u);
         }

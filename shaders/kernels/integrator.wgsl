@@ -34,6 +34,11 @@ fn to_camera(v: vec3<f32>) -> vec3<f32> {
 // light through attenuated by their Fresnel transmittance (refraction ignored, as for any
 // shadow ray through a thin window); anything else blocks it.
 fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function, u32>) -> f32 {
+    if ((params.scene_flags & SCENE_HAS_LENS) == 0u) {
+        // No lens anywhere: any hit blocks, so the first one found ends the traversal.
+        *rays += 1u;
+        return select(0.0, 1.0, trace_impl(Ray(origin_in, dir, 0.0, 3.4e38), true, 0u).t < 0.0);
+    }
     var origin = origin_in;
     var tr = 1.0;
     for (var i = 0u; i < SHADOW_LENS_LAYERS; i++) {
@@ -53,7 +58,7 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
     return 0.0;
 }
 
-fn trace_path(first: Ray, light: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> vec3<f32> {
+fn trace_path(first: Ray, first_hit: Hit, light: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> vec3<f32> {
     var ray = first;
     var throughput = vec3<f32>(1.0);
     var radiance = vec3<f32>(0.0);
@@ -61,8 +66,11 @@ fn trace_path(first: Ray, light: u32, rng: ptr<function, Rng>, rays: ptr<functio
     var prev_delta = true;
     var only_lens = true; // still on the camera ray (possibly through lenses): a miss is background
     for (var depth = 0u; depth <= params.max_depth; depth++) {
-        *rays += 1u;
-        let hit = trace_closest(ray);
+        var hit = first_hit;
+        if (depth > 0u) {
+            *rays += 1u;
+            hit = trace_closest(ray);
+        }
         if (hit.t < 0.0) {
             if (!only_lens) {
                 let le = env_eval(light, ray.dir);
@@ -132,12 +140,15 @@ fn trace_path(first: Ray, light: u32, rng: ptr<function, Rng>, rays: ptr<functio
 
 // Primary-hit passes: albedo, normal, coverage of the first non-lens surface; normal and coverage
 // of the first lens surface in front of it (lens surfaces count only in normal_lens).
-fn aux_passes(first: Ray, p: u32, rays: ptr<function, u32>) {
+fn aux_passes(first: Ray, first_hit: Hit, p: u32, rays: ptr<function, u32>) {
     var ray = first;
     var lens_done = false;
     for (var layer = 0u; layer < 8u; layer++) {
-        *rays += 1u;
-        let hit = trace_closest(ray);
+        var hit = first_hit;
+        if (layer > 0u) {
+            *rays += 1u;
+            hit = trace_closest(ray);
+        }
         if (hit.t < 0.0) {
             return;
         }
@@ -171,10 +182,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let s = pc.sample_start + i;
         var rng = rng_init(p, s, params.seed);
         let ray = camera_ray(gid.xy, rng_next2(&rng));
+        // The camera ray's hit serves the passes and the path alike.
+        rays += 1u;
+        let hit = trace_closest(ray);
         if (pc.write_aux != 0u) {
-            aux_passes(ray, p, &rays);
+            aux_passes(ray, hit, p, &rays);
         }
-        let l = trace_path(ray, pc.light, &rng, &rays);
+        let l = trace_path(ray, hit, pc.light, &rng, &rays);
         // A non-finite sample would poison the pixel forever: drop it (counted by the host as NaN-free output).
         if (all(l == l) && max3(l) < 3.0e38) {
             sum += l;

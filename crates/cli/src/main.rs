@@ -19,7 +19,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a glTF scene under one or more HDR environment maps into a multi-layer EXR.
-    Render(render_cmd::RenderArgs),
+    Render(Box<render_cmd::RenderArgs>),
     /// List the Vulkan devices lightfarm can render on.
     Devices,
 }
@@ -33,7 +33,7 @@ fn main() {
         .init();
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render(args) => render_cmd::run(args),
+        Command::Render(args) => render_cmd::run(*args),
         Command::Devices => render_cmd::devices(),
     };
     if let Err(e) = result {

@@ -98,7 +98,7 @@ fn renders_the_head_with_two_lightings_stats_and_preview() {
     }
     let attrs = &layer.attributes.other;
     assert!(
-        attrs.keys().any(|k| k.to_string() == "lightfarm.spec"),
+        attrs.contains_key(&exr::prelude::Text::from("lightfarm.spec")),
         "spec attribute missing"
     );
     let png = image::open(&preview).expect("preview png");

@@ -12,7 +12,9 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 
-use crate::gpu_types::{InstanceGpu, MaterialGpu, MAT_FLAG_LENS, NO_NODE, NO_TEX, TRI_ATTR_VEC4S};
+use crate::gpu_types::{
+    InstanceGpu, MaterialGpu, MAT_FLAG_LENS, NO_NODE, NO_TEX, SCENE_HAS_LENS, TRI_ATTR_VEC4S,
+};
 use crate::scene::{Material, Scene};
 use crate::RenderError;
 
@@ -278,6 +280,15 @@ pub fn pack_scene(scene: &Scene) -> Result<PackedScene, RenderError> {
 }
 
 impl PackedScene {
+    /// SCENE_HAS_LENS when some material is a lens (shadow rays must then look through it).
+    pub fn scene_flags(&self) -> u32 {
+        if self.materials.iter().any(|m| m.tex[3] & MAT_FLAG_LENS != 0) {
+            SCENE_HAS_LENS
+        } else {
+            0
+        }
+    }
+
     /// A scene with no geometry (every ray misses); the probes bind it when they test sampling alone.
     pub fn empty() -> PackedScene {
         PackedScene {

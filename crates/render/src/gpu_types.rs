@@ -6,6 +6,7 @@ use bytemuck::{Pod, Zeroable};
 pub const NO_NODE: u32 = u32::MAX;
 pub const NO_TEX: u32 = u32::MAX;
 pub const MAT_FLAG_LENS: u32 = 1;
+pub const SCENE_HAS_LENS: u32 = 1;
 /// vec4s of per-triangle attributes in `tri_attr` (see shaders/inc/traverse.wgsl).
 pub const TRI_ATTR_VEC4S: usize = 5;
 /// u32 words per CWBVH node.
@@ -22,6 +23,9 @@ pub struct Params {
     pub rr_depth: u32,
     pub num_lights: u32,
     pub tlas_node_offset: u32,
+    /// SCENE_HAS_LENS
+    pub scene_flags: u32,
+    pub _pad: [u32; 3],
     pub cam_pos: [f32; 4],
     pub cam_right: [f32; 4],
     pub cam_up: [f32; 4],
@@ -82,7 +86,7 @@ pub struct Push {
     pub _pad: [u32; 2],
 }
 
-const _: () = assert!(std::mem::size_of::<Params>() == 96);
+const _: () = assert!(std::mem::size_of::<Params>() == 112);
 const _: () = assert!(std::mem::size_of::<InstanceGpu>() == 144);
 const _: () = assert!(std::mem::size_of::<MaterialGpu>() == 80);
 const _: () = assert!(std::mem::size_of::<EnvDesc>() == 48);

@@ -44,6 +44,14 @@ pub struct GpuHit {
     pub slot: u32,
 }
 
+/// One probe dispatch: what goes in, how much comes out.
+struct Job {
+    input: Vec<[f32; 4]>,
+    out_vec4s: usize,
+    push: Push,
+    seed: u32,
+}
+
 pub struct Probe {
     ctx: Arc<GpuContext>,
     probe: ComputeKernel,
@@ -86,11 +94,14 @@ impl Probe {
         kernel: &ComputeKernel,
         scene: &PackedScene,
         env: &PackedEnv,
-        input: &[[f32; 4]],
-        out_vec4s: usize,
-        push: Push,
-        seed: u32,
+        job: Job,
     ) -> Result<Vec<[f32; 4]>, RenderError> {
+        let Job {
+            input,
+            out_vec4s,
+            push,
+            seed,
+        } = job;
         let params = Params {
             seed,
             tlas_node_offset: scene.tlas_node_offset,
@@ -99,7 +110,7 @@ impl Probe {
         let bound = Bound::upload(&self.ctx, &params, scene, env)?;
         let dummy = |label| GpuBuffer::zeroed(&self.ctx, label, 16);
         let (lit, aux, counters) = (dummy("unused")?, dummy("unused")?, dummy("unused")?);
-        let pin = GpuBuffer::from_slice(&self.ctx, "probe input", input)?;
+        let pin = GpuBuffer::from_slice(&self.ctx, "probe input", &input)?;
         let pout = GpuBuffer::zeroed(&self.ctx, "probe output", (out_vec4s as u64) * 16)?;
         let bindings = bound.bindings([&lit, &aux, &counters, &pin, &pout]);
         kernel.dispatch(
@@ -135,14 +146,17 @@ impl Probe {
             count: n as u32,
             ..Default::default()
         };
+        let input = Self::surface_input(s, wo);
         let out = self.run(
             &self.probe,
             &PackedScene::empty(),
             &PackedEnv::default(),
-            &Self::surface_input(s, wo),
-            2 * n,
-            push,
-            seed,
+            Job {
+                input,
+                out_vec4s: 2 * n,
+                push,
+                seed,
+            },
         )?;
         Ok(out
             .chunks_exact(2)
@@ -175,10 +189,12 @@ impl Probe {
             &self.probe,
             &PackedScene::empty(),
             &PackedEnv::default(),
-            &input,
-            wis.len(),
-            push,
-            0,
+            Job {
+                input,
+                out_vec4s: wis.len(),
+                push,
+                seed: 0,
+            },
         )?;
         Ok(out.iter().map(|v| ([v[0], v[1], v[2]], v[3])).collect())
     }
@@ -201,10 +217,12 @@ impl Probe {
             &self.probe,
             &PackedScene::empty(),
             &env,
-            &[[0.0; 4]],
-            n,
-            push,
-            seed,
+            Job {
+                input: vec![[0.0; 4]],
+                out_vec4s: n,
+                push,
+                seed,
+            },
         )?;
         Ok(out.iter().map(|v| ([v[0], v[1], v[2]], v[3])).collect())
     }
@@ -227,10 +245,12 @@ impl Probe {
             &self.probe,
             &PackedScene::empty(),
             &env,
-            &input,
-            dirs.len(),
-            push,
-            0,
+            Job {
+                input,
+                out_vec4s: dirs.len(),
+                push,
+                seed: 0,
+            },
         )?;
         Ok(out.iter().map(|v| (v[0], [v[1], v[2], v[3]])).collect())
     }
@@ -255,10 +275,12 @@ impl Probe {
             &self.trace,
             scene,
             &PackedEnv::default(),
-            &input,
-            rays.len(),
-            push,
-            0,
+            Job {
+                input,
+                out_vec4s: rays.len(),
+                push,
+                seed: 0,
+            },
         )?;
         Ok(out
             .iter()

@@ -172,7 +172,27 @@ impl Renderer {
             shaders::NUM_BINDINGS,
             std::mem::size_of::<Push>() as u32,
         )?;
-        Ok(Renderer { ctx, integrator })
+        let renderer = Renderer { ctx, integrator };
+        renderer.warm_up()?;
+        Ok(renderer)
+    }
+
+    /// lavapipe compiles a pipeline with LLVM on its first dispatch (seconds for the
+    /// integrator); an empty dispatch here keeps that out of every render's timing and progress.
+    fn warm_up(&self) -> Result<(), RenderError> {
+        let bound = Bound::upload(
+            &self.ctx,
+            &Params::default(),
+            &PackedScene::empty(),
+            &PackedEnv::default(),
+        )?;
+        let rw: Vec<GpuBuffer> = (0..5)
+            .map(|_| GpuBuffer::zeroed(&self.ctx, "warm-up", 16))
+            .collect::<Result<_, _>>()?;
+        let bindings = bound.bindings([&rw[0], &rw[1], &rw[2], &rw[3], &rw[4]]);
+        self.integrator
+            .dispatch(&bindings, bytemuck::bytes_of(&Push::default()), [1, 1, 1])?;
+        Ok(())
     }
 
     pub fn context(&self) -> &Arc<GpuContext> {
@@ -211,6 +231,8 @@ impl Renderer {
             rr_depth: settings.rr_depth,
             num_lights: lights.len() as u32,
             tlas_node_offset: scene.tlas_node_offset,
+            scene_flags: scene.scene_flags(),
+            _pad: [0; 3],
             cam_pos,
             cam_right,
             cam_up,

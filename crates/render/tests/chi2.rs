@@ -21,7 +21,7 @@ fn probe() -> Probe {
 
 fn cell_of(d: [f32; 3]) -> Option<usize> {
     let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-    if !(len > 0.0) || !len.is_finite() {
+    if !len.is_finite() || len <= 0.0 {
         return None;
     }
     let z = (d[2] / len).clamp(-1.0, 1.0) as f64;
@@ -99,10 +99,10 @@ fn check_bsdf(name: &str, s: ProbeSurface, theta_o_deg: f32, tests: u32) {
             "{name}: sampled pdf {} vs eval pdf {pdf}",
             smp.pdf
         );
-        for k in 0..3 {
-            let w = f_cos[k] / pdf;
+        for (sw, f) in smp.weight.iter().zip(f_cos) {
+            let w = f / pdf;
             assert!(
-                (smp.weight[k] - w).abs() <= 1e-3 * w.max(1.0),
+                (sw - w).abs() <= 1e-3 * w.max(1.0),
                 "{name}: weight {:?} vs f·cos/pdf {w}",
                 smp.weight
             );
