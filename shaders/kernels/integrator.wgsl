@@ -34,21 +34,19 @@ fn to_camera(v: vec3<f32>) -> vec3<f32> {
 // light through attenuated by their Fresnel transmittance (refraction ignored, as for any
 // shadow ray through a thin window); anything else blocks it.
 fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function, u32>) -> f32 {
-    if ((params.scene_flags & SCENE_HAS_LENS) == 0u) {
-        // No lens anywhere: any hit blocks, so the first one found ends the traversal.
-        *rays += 1u;
-        return select(0.0, 1.0, trace_impl(Ray(origin_in, dir, 0.0, 3.4e38), true, 0u).t < 0.0);
-    }
+    // Without lenses any hit blocks, so the first one found ends the traversal. (One trace call
+    // site per kernel path keeps the code lavapipe generates small.)
+    let any_hit = (params.scene_flags & SCENE_HAS_LENS) == 0u;
     var origin = origin_in;
     var tr = 1.0;
     for (var i = 0u; i < SHADOW_LENS_LAYERS; i++) {
         *rays += 1u;
-        let h = trace_closest(Ray(origin, dir, 0.0, 3.4e38));
+        let h = trace_impl(Ray(origin, dir, 0.0, 3.4e38), any_hit, 0u);
         if (h.t < 0.0) {
             return tr;
         }
         let mat = materials[bitcast<u32>(tri_attr[h.tri * TRI_ATTR_VEC4S + 3u].w)];
-        if ((mat.tex.w & MAT_FLAG_LENS) == 0u) {
+        if (any_hit || (mat.tex.w & MAT_FLAG_LENS) == 0u) {
             return 0.0;
         }
         let sp = shade_hit(Ray(origin, dir, 0.0, 3.4e38), h);
@@ -58,7 +56,7 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
     return 0.0;
 }
 
-fn trace_path(first: Ray, first_hit: Hit, light: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> vec3<f32> {
+fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> vec3<f32> {
     var ray = first;
     var throughput = vec3<f32>(1.0);
     var radiance = vec3<f32>(0.0);
@@ -66,10 +64,11 @@ fn trace_path(first: Ray, first_hit: Hit, light: u32, rng: ptr<function, Rng>, r
     var prev_delta = true;
     var only_lens = true; // still on the camera ray (possibly through lenses): a miss is background
     for (var depth = 0u; depth <= params.max_depth; depth++) {
-        var hit = first_hit;
-        if (depth > 0u) {
-            *rays += 1u;
-            hit = trace_closest(ray);
+        *rays += 1u;
+        let hit = trace_closest(ray);
+        if (depth == 0u && pc.write_aux != 0u) {
+            // The camera ray's hit serves the passes too.
+            aux_passes(ray, hit, p, rays);
         }
         if (hit.t < 0.0) {
             if (!only_lens) {
@@ -182,13 +181,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let s = pc.sample_start + i;
         var rng = rng_init(p, s, params.seed);
         let ray = camera_ray(gid.xy, rng_next2(&rng));
-        // The camera ray's hit serves the passes and the path alike.
-        rays += 1u;
-        let hit = trace_closest(ray);
-        if (pc.write_aux != 0u) {
-            aux_passes(ray, hit, p, &rays);
-        }
-        let l = trace_path(ray, hit, pc.light, &rng, &rays);
+        let l = trace_path(ray, p, pc.light, &rng, &rays);
         // A non-finite sample would poison the pixel forever: drop it (counted by the host as NaN-free output).
         if (all(l == l) && max3(l) < 3.0e38) {
             sum += l;

@@ -1,0 +1,126 @@
+//! Textures reach the shading: base colour (sRGB-decoded, glTF uv orientation), and normal maps
+//! through the tangent frame, read back from the albedo and normal passes.
+
+mod common;
+
+use glam::Mat4;
+use lightfarm_render::scene::{shapes, Material, Scene, Texture};
+
+fn srgb_to_linear(c: u8) -> f32 {
+    let c = c as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn textured_quad(base: Option<Texture>, normal: Option<Texture>) -> Scene {
+    let mut scene = Scene::default();
+    let mut material = common::material(1.0, 0.0);
+    if let Some(t) = base {
+        scene.textures.push(t);
+        material.base_color_texture = Some(scene.textures.len() as u32 - 1);
+    }
+    if let Some(t) = normal {
+        scene.textures.push(t);
+        material.normal_texture = Some(scene.textures.len() as u32 - 1);
+        material.normal_scale = 1.0;
+    }
+    scene.add_mesh_instance(shapes::quad(1.0, 1.0), material, Mat4::IDENTITY);
+    scene
+}
+
+#[test]
+fn base_color_texture_is_srgb_decoded_and_oriented() {
+    // Quadrants of a 4x4 texture (2x2 texels each, so bilinear filtering inside a quadrant sees
+    // one colour): top (v < 0.5) red, green; bottom blue, white.
+    let texels: [[u8; 4]; 4] = [
+        [200, 30, 30, 255],
+        [30, 200, 30, 255],
+        [30, 30, 200, 255],
+        [255, 255, 255, 255],
+    ];
+    let mut rgba8 = Vec::new();
+    for y in 0..4 {
+        for x in 0..4 {
+            rgba8.extend_from_slice(&texels[(y / 2) * 2 + x / 2]);
+        }
+    }
+    let tex = Texture {
+        width: 4,
+        height: 4,
+        rgba8,
+    };
+    let size = 32u32;
+    let out = common::render(
+        &textured_quad(Some(tex), None),
+        &[common::constant_light(1.0)],
+        size,
+        4,
+        1,
+    );
+    // Quadrant centres of the quad (it spans ±0.62 in NDC): u, v = 0.25 / 0.75 land on texel centres.
+    let px = |ndc: f32| ((ndc + 1.0) * 0.5 * size as f32) as u32;
+    let at = |x: f32, y: f32| out.albedo[(px(-y) * size + px(x)) as usize];
+    let expect = |t: [u8; 4]| {
+        [
+            srgb_to_linear(t[0]),
+            srgb_to_linear(t[1]),
+            srgb_to_linear(t[2]),
+        ]
+    };
+    for ((x, y), texel) in [
+        ((-0.31, 0.31), texels[0]),
+        ((0.31, 0.31), texels[1]),
+        ((-0.31, -0.31), texels[2]),
+        ((0.31, -0.31), texels[3]),
+    ] {
+        let got = at(x, y);
+        let want = expect(texel);
+        for k in 0..3 {
+            assert!(
+                (got[k] - want[k]).abs() < 0.03,
+                "albedo at ({x}, {y}) = {got:?}, texel {want:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn normal_map_tilts_the_shading_normal_along_the_tangent() {
+    // Tangent-space normal (0.6, 0, 0.8): tilted toward the tangent (+X on the quad).
+    let enc = |v: f32| ((v * 0.5 + 0.5) * 255.0).round() as u8;
+    let texel = [enc(0.6), enc(0.0), enc(0.8), 255];
+    let tex = Texture {
+        width: 1,
+        height: 1,
+        rgba8: texel.to_vec(),
+    };
+    let size = 16u32;
+    let flat = common::render(
+        &textured_quad(None, None),
+        &[common::constant_light(1.0)],
+        size,
+        2,
+        1,
+    );
+    let mapped = common::render(
+        &textured_quad(None, Some(tex)),
+        &[common::constant_light(1.0)],
+        size,
+        2,
+        1,
+    );
+    let centre = ((size / 2) * size + size / 2) as usize;
+    assert!(
+        flat.normal[centre][2] > 0.999,
+        "unmapped quad faces the camera: {:?}",
+        flat.normal[centre]
+    );
+    let n = mapped.normal[centre];
+    assert!(
+        (n[0] - 0.6).abs() < 0.02 && n[1].abs() < 0.02 && (n[2] - 0.8).abs() < 0.02,
+        "mapped normal {n:?}"
+    );
+}
