@@ -46,6 +46,11 @@ fn main() {
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string_with_path(&src, &rel)));
         let options = naga::back::spv::Options {
             lang_version: (1, 3),
+            // The traversal stacks in workgroup memory are written before they are read; naga's
+            // zero-fill polyfill would add a barrier, which makes lavapipe run compute
+            // invocations as coroutines.
+            zero_initialize_workgroup_memory:
+                naga::back::spv::ZeroInitializeWorkgroupMemoryMode::None,
             ..Default::default()
         };
         let pipeline = naga::back::spv::PipelineOptions {

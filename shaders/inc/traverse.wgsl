@@ -8,7 +8,16 @@
 
 const NODE_VEC4S: u32 = 5u;
 const TRI_ATTR_VEC4S: u32 = 5u;
-const STACK_SIZE: u32 = 32u;
+// Traversal stacks live in workgroup memory, one slice per invocation: lavapipe lowers a
+// dynamically indexed private array to a ladder of selects over all its elements (measured as a
+// fifth of the render time), while workgroup memory is plain addressable memory. Every kernel
+// including this file runs 64 invocations per workgroup and sets `stack_base` first.
+const BLAS_STACK: u32 = 24u;
+const TLAS_STACK: u32 = 8u;
+const WG_INVOCATIONS: u32 = 64u;
+var<workgroup> blas_stack: array<vec2<u32>, 1536>; // WG_INVOCATIONS * BLAS_STACK
+var<workgroup> tlas_stack: array<vec2<u32>, 512>;  // WG_INVOCATIONS * TLAS_STACK
+var<private> stack_base: u32;
 
 struct Ray {
     origin: vec3<f32>,
@@ -136,7 +145,7 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
     let inst = instances[inst_id];
     let inv_dir = vec3<f32>(safe_inverse(dir.x), safe_inverse(dir.y), safe_inverse(dir.z));
     let oct = octant_inv4(dir);
-    var stack: array<vec2<u32>, STACK_SIZE>;
+    let sb = stack_base * BLAS_STACK;
     var sp = 0u;
     var current = vec2<u32>(0u, 0x80000000u);
     var prims = vec2<u32>(0u, 0u);
@@ -161,8 +170,8 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
             let offset = firstLeadingBit(hits_imask);
             current.y &= ~(1u << offset);
             if ((current.y & 0xff000000u) != 0u) {
-                stack[sp] = current;
-                sp = min(sp + 1u, STACK_SIZE - 1u);
+                blas_stack[sb + sp] = current;
+                sp = min(sp + 1u, BLAS_STACK - 1u);
             }
             let slot_index = (offset - 24u) ^ (oct & 0xffu);
             let relative = countOneBits(hits_imask & ~(0xffffffffu << slot_index));
@@ -180,7 +189,7 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
                 break;
             }
             sp -= 1u;
-            current = stack[sp];
+            current = blas_stack[sb + sp];
         }
     }
     return found;
@@ -198,7 +207,7 @@ fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
     }
     let inv_dir = vec3<f32>(safe_inverse(ray.dir.x), safe_inverse(ray.dir.y), safe_inverse(ray.dir.z));
     let oct = octant_inv4(ray.dir);
-    var stack: array<vec2<u32>, 16>;
+    let sb = stack_base * TLAS_STACK;
     var sp = 0u;
     var current = vec2<u32>(0u, 0x80000000u);
     var prims = vec2<u32>(0u, 0u);
@@ -221,8 +230,8 @@ fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
             let offset = firstLeadingBit(hits_imask);
             current.y &= ~(1u << offset);
             if ((current.y & 0xff000000u) != 0u) {
-                stack[sp] = current;
-                sp = min(sp + 1u, 15u);
+                tlas_stack[sb + sp] = current;
+                sp = min(sp + 1u, TLAS_STACK - 1u);
             }
             let slot_index = (offset - 24u) ^ (oct & 0xffu);
             let relative = countOneBits(hits_imask & ~(0xffffffffu << slot_index));
@@ -240,7 +249,7 @@ fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
                 break;
             }
             sp -= 1u;
-            current = stack[sp];
+            current = tlas_stack[sb + sp];
         }
     }
     if (best.instance == 0xffffffffu) {

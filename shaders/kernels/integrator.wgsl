@@ -169,7 +169,8 @@ fn aux_passes(first: Ray, first_hit: Hit, p: u32, rays: ptr<function, u32>) {
 }
 
 @compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    stack_base = lid;
     if (gid.x >= params.width || gid.y >= params.height) {
         return;
     }

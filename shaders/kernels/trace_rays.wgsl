@@ -7,7 +7,8 @@
 // probe_out[i] = (t or -1, bitcast instance, bitcast triangle slot, u).
 
 @compute @workgroup_size(64, 1, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    stack_base = lid;
     let i = gid.x;
     if (i >= pc.count) {
         return;
