@@ -135,9 +135,16 @@ def build_scene(mi, args):
     aspect = args.width / args.height
     if args.scene == "sphere":
         origin, target = [0.0, 0.0, 3.0], [0.0, 0.0, 0.0]
-        shape = {"type": "sphere", "center": [0, 0, 0], "radius": 0.5,
-                 "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.8}}}
-        extra = {}
+        diffuse = {"type": "diffuse", "reflectance": {"type": "rgb", "value": 0.8}}
+        if args.sphere_mesh:
+            # The same triangle mesh lightfarm renders (bench/compare.sh writes it), so both
+            # renderers trace the same geometry rather than an analytic sphere against a BVH.
+            info = head_mesh(args.sphere_mesh, args.cache_dir)
+            shape = {"type": "ply", "filename": info["ply"], "face_normals": False, "bsdf": diffuse}
+            extra = {"mesh_triangles": info["triangles"]}
+        else:
+            shape = {"type": "sphere", "center": [0, 0, 0], "radius": 0.5, "bsdf": diffuse}
+            extra = {"analytic_sphere": True}
     else:
         info = head_mesh(asset(args.mesh or SCENE_DEFAULTS["head"]["mesh"]), args.cache_dir)
         origin, target = frame_bounds(info["bbox_min"], info["bbox_max"], aspect)
@@ -220,6 +227,8 @@ def main(argv=None):
     ap.add_argument("--env", help="override the scene's env map (path, or relative to assets/; "
                                   "'white' = constant radiance --env-scale, a furnace test)")
     ap.add_argument("--env-scale", type=float, default=1.0)
+    ap.add_argument("--sphere-mesh", help="sphere scene: render this .glb (lightfarm's icosphere) "
+                    "instead of Mitsuba's analytic sphere")
     ap.add_argument("--mesh", help="head scene: another .glb (path or relative to assets/)")
     ap.add_argument("--head-bsdf", choices=["principled", "diffuse"], default="principled")
     ap.add_argument("--show-background", action="store_true",

@@ -18,7 +18,7 @@ VENV="$BENCH_DIR/venv"
 LLVM_DIR="$BENCH_DIR/llvm19"
 PY="${PYTHON:-python3}"
 MITSUBA_PIN="3.9.1"
-DEBIAN_MIRROR="${DEBIAN_MIRROR:-http://deb.debian.org/debian}"
+DEBIAN_MIRROR="${DEBIAN_MIRROR:-$(bash "$(dirname "${BASH_SOURCE[0]}")/../scripts/debian-mirror.sh")}"
 # Last-resort direct URL (Debian 12 point release package).
 LLVM_POOL_URL="$DEBIAN_MIRROR/pool/main/l/llvm-toolchain-19/libllvm19_19.1.7-3~deb12u1_amd64.deb"
 

@@ -30,3 +30,6 @@ if [ -z "${XDG_RUNTIME_DIR:-}" ]; then
 fi
 # A persistent target dir outside the clone: rebuilds in a fresh clone stay incremental.
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-$HOME/.cache/lightfarm-target}"
+# A 3.5x faster lavapipe on Debian 12 (backports, private copy, system untouched); falls back
+# to the system driver on any problem. LIGHTFARM_LAVAPIPE=system keeps Debian's Mesa 22.
+source "$(dirname "${BASH_SOURCE[0]}")/lavapipe-backports.sh"
