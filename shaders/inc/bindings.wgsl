@@ -47,9 +47,9 @@ struct EnvDesc {
     height: u32,
     texel_offset: u32,    // into env_texels
     cond_func_offset: u32, // into env_dist: height rows of `width` values
-    cond_cdf_offset: u32,  // height rows of `width + 1` values
-    marg_func_offset: u32, // `height` values (= each row's integral)
-    marg_cdf_offset: u32,  // `height + 1` values
+    alias_offset: u32,     // width * height (keep probability, bitcast alias index) pairs
+    _pad0: u32,
+    _pad1: u32,
     flip: u32,
     cos_rot: f32,
     sin_rot: f32,

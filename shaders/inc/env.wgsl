@@ -50,47 +50,27 @@ fn env_eval(light: u32, d: vec3<f32>) -> vec3<f32> {
     return env_texels[e.texel_offset + xy.y * e.width + xy.x].xyz;
 }
 
-// Index of the last cdf entry <= u among `count + 1` entries starting at `off`.
-fn find_interval(off: u32, count: u32, u: f32) -> u32 {
-    var lo = 0u;
-    var hi = count; // cdf[count] == 1 > u
-    while (hi - lo > 1u) {
-        let mid = (lo + hi) / 2u;
-        if (env_dist[off + mid] <= u) {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    return lo;
-}
-
 struct EnvSample {
     dir: vec3<f32>,
     pdf: f32,
     radiance: vec3<f32>,
 };
 
-fn env_sample(light: u32, u: vec2<f32>) -> EnvSample {
+// Picks a texel with Walker's alias method (one lookup instead of two binary searches), then a
+// uniform position inside it: the density is exactly the piecewise-constant one of env_pdf().
+fn env_sample(light: u32, u: vec3<f32>) -> EnvSample {
     let e = env_desc[light];
-    // Rows (v) from the marginal, then the column (u) from that row's conditional.
-    let y = find_interval(e.marg_cdf_offset, e.height, u.y);
-    let c0 = env_dist[e.marg_cdf_offset + y];
-    let c1 = env_dist[e.marg_cdf_offset + y + 1u];
-    var dv = u.y - c0;
-    if (c1 - c0 > 0.0) {
-        dv /= (c1 - c0);
+    let n = e.width * e.height;
+    let fi = u.x * f32(n);
+    let i = min(u32(fi), n - 1u);
+    var cell = i;
+    if (fi - f32(i) >= env_dist[e.alias_offset + 2u * i]) {
+        cell = bitcast<u32>(env_dist[e.alias_offset + 2u * i + 1u]);
     }
-    let cdf_off = e.cond_cdf_offset + y * (e.width + 1u);
-    let x = find_interval(cdf_off, e.width, u.x);
-    let d0 = env_dist[cdf_off + x];
-    let d1 = env_dist[cdf_off + x + 1u];
-    var du = u.x - d0;
-    if (d1 - d0 > 0.0) {
-        du /= (d1 - d0);
-    }
-    let uv = vec2<f32>((f32(x) + clamp(du, 0.0, 1.0)) / f32(e.width), (f32(y) + clamp(dv, 0.0, 1.0)) / f32(e.height));
-    let func = env_dist[e.cond_func_offset + y * e.width + x];
+    let x = cell % e.width;
+    let y = cell / e.width;
+    let uv = vec2<f32>((f32(x) + u.y) / f32(e.width), (f32(y) + u.z) / f32(e.height));
+    let func = env_dist[e.cond_func_offset + cell];
     var pdf_uv = 0.0;
     if (e.marg_integral > 0.0) {
         pdf_uv = func / e.marg_integral;
@@ -101,7 +81,7 @@ fn env_sample(light: u32, u: vec2<f32>) -> EnvSample {
     if (sin_theta > 0.0) {
         pdf = pdf_uv / (2.0 * PI * PI * sin_theta);
     }
-    let radiance = env_texels[e.texel_offset + y * e.width + x].xyz;
+    let radiance = env_texels[e.texel_offset + cell].xyz;
     return EnvSample(env_local_to_world(e, local), pdf, radiance);
 }
 

@@ -34,23 +34,39 @@ pub fn pack_envs(lights: &[EnvLight]) -> PackedEnv {
         for row in &dist.conditional {
             out.dist.extend_from_slice(&row.func);
         }
-        let cond_cdf_offset = out.dist.len() as u32;
-        for row in &dist.conditional {
-            out.dist.extend_from_slice(&row.cdf);
+        // Texel probabilities of the 2D distribution (marginal row × conditional column), for
+        // O(1) sampling on the device; the pdf stays the piecewise-constant one above.
+        let (w, h) = (hdri.width as usize, hdri.height as usize);
+        let mut probs = Vec::with_capacity(w * h);
+        for (y, row) in dist.conditional.iter().enumerate() {
+            let p_row = if dist.marginal.integral > 0.0 {
+                dist.marginal.func[y] as f64 / (dist.marginal.integral as f64 * h as f64)
+            } else {
+                1.0 / h as f64
+            };
+            for x in 0..w {
+                let p_col = if row.integral > 0.0 {
+                    row.func[x] as f64 / (row.integral as f64 * w as f64)
+                } else {
+                    1.0 / w as f64
+                };
+                probs.push(p_row * p_col);
+            }
         }
-        let marg_func_offset = out.dist.len() as u32;
-        out.dist.extend_from_slice(&dist.marginal.func);
-        let marg_cdf_offset = out.dist.len() as u32;
-        out.dist.extend_from_slice(&dist.marginal.cdf);
+        let alias_offset = out.dist.len() as u32;
+        for (p, a) in alias_table(&probs) {
+            out.dist.push(p);
+            out.dist.push(f32::from_bits(a));
+        }
         let theta = light.transform.rotation_deg.to_radians();
         out.desc.push(EnvDesc {
             width: hdri.width,
             height: hdri.height,
             texel_offset,
             cond_func_offset,
-            cond_cdf_offset,
-            marg_func_offset,
-            marg_cdf_offset,
+            alias_offset,
+            _pad0: 0,
+            _pad1: 0,
             flip: light.transform.flip as u32,
             cos_rot: theta.cos(),
             sin_rot: theta.sin(),
@@ -59,4 +75,47 @@ pub fn pack_envs(lights: &[EnvLight]) -> PackedEnv {
         });
     }
     out
+}
+
+/// Walker's alias method (Vose's construction): for each cell, the probability of keeping it and
+/// the cell to take otherwise. `probs` sums to 1.
+fn alias_table(probs: &[f64]) -> Vec<(f32, u32)> {
+    let n = probs.len();
+    let mut scaled: Vec<f64> = probs.iter().map(|p| p * n as f64).collect();
+    let mut table = vec![(1.0f32, 0u32); n];
+    let (mut small, mut large): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| scaled[i] < 1.0);
+    while let (Some(s), Some(&l)) = (small.pop(), large.last()) {
+        table[s] = (scaled[s] as f32, l as u32);
+        scaled[l] -= 1.0 - scaled[s];
+        if scaled[l] < 1.0 {
+            large.pop();
+            small.push(l);
+        }
+    }
+    // Leftovers are 1 up to rounding: always keep them.
+    for i in small.into_iter().chain(large) {
+        table[i] = (1.0, i as u32);
+    }
+    table
+}
+
+#[cfg(test)]
+mod tests {
+    use super::alias_table;
+
+    #[test]
+    fn alias_table_reproduces_the_probabilities() {
+        let probs = [0.5, 0.0, 0.125, 0.25, 0.125];
+        let table = alias_table(&probs);
+        let n = probs.len() as f64;
+        let mut got = vec![0.0f64; probs.len()];
+        for (i, (p, a)) in table.iter().enumerate() {
+            got[i] += *p as f64 / n;
+            got[*a as usize] += (1.0 - *p as f64) / n;
+        }
+        for (g, p) in got.iter().zip(probs) {
+            assert!((g - p).abs() < 1e-6, "{got:?} vs {probs:?}");
+        }
+        assert_eq!(table[1].0, 0.0, "a zero-probability cell is never kept");
+    }
 }

@@ -64,9 +64,10 @@ pub struct EnvDesc {
     pub height: u32,
     pub texel_offset: u32,
     pub cond_func_offset: u32,
-    pub cond_cdf_offset: u32,
-    pub marg_func_offset: u32,
-    pub marg_cdf_offset: u32,
+    /// width × height (probability, bitcast alias index) pairs
+    pub alias_offset: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
     pub flip: u32,
     pub cos_rot: f32,
     pub sin_rot: f32,
