@@ -56,15 +56,15 @@ struct EnvSample {
     radiance: vec3<f32>,
 };
 
-// Picks a texel with Walker's alias method (one lookup instead of two binary searches), then a
-// uniform position inside it: the density is exactly the piecewise-constant one of env_pdf().
-fn env_sample(light: u32, u: vec3<f32>) -> EnvSample {
+// Picks a texel with Walker's alias method (one lookup instead of two binary searches): `r` picks
+// the cell, u.x decides between it and its alias (an independent number: reusing the fraction of
+// the cell choice would quantise the decision to a few bits on large maps), u.yz place the sample
+// uniformly inside the texel, so the density is exactly the piecewise-constant one of env_pdf().
+fn env_sample(light: u32, r: u32, u: vec3<f32>) -> EnvSample {
     let e = env_desc[light];
-    let n = e.width * e.height;
-    let fi = u.x * f32(n);
-    let i = min(u32(fi), n - 1u);
+    let i = uniform_index(r, e.width * e.height);
     var cell = i;
-    if (fi - f32(i) >= env_dist[e.alias_offset + 2u * i]) {
+    if (u.x >= env_dist[e.alias_offset + 2u * i]) {
         cell = bitcast<u32>(env_dist[e.alias_offset + 2u * i + 1u]);
     }
     let x = cell % e.width;

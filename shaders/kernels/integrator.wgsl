@@ -93,7 +93,7 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
 
         // Next-event estimation of the environment.
         if (!delta) {
-            let ls = env_sample(light, vec3<f32>(rng_next(rng), rng_next2(rng)));
+            let ls = env_sample(light, rng_next_u32(rng), vec3<f32>(rng_next(rng), rng_next2(rng)));
             if (ls.pdf > 0.0 && dot(ls.dir, sp.ng) > 0.0) {
                 let wi = to_local(sp.frame, ls.dir);
                 let e = bsdf_eval(sp.surface, wo, wi);
@@ -107,6 +107,7 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
             }
         } else {
             // Keep the random stream aligned whatever the material, for stable noise across lightings.
+            _ = rng_next_u32(rng);
             _ = rng_next(rng);
             _ = rng_next2(rng);
         }

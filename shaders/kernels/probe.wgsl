@@ -46,7 +46,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         }
         case 2u: {
             var rng = rng_init(i, pc.sample_start, params.seed);
-            let es = env_sample(0u, vec3<f32>(rng_next(&rng), rng_next2(&rng)));
+            let es = env_sample(0u, rng_next_u32(&rng), vec3<f32>(rng_next(&rng), rng_next2(&rng)));
             probe_out[i] = vec4<f32>(es.dir, es.pdf);
         }
         case 3u: {

@@ -278,3 +278,55 @@ fn environment_sampler_matches_its_pdf() {
             .unwrap_or_else(|e| panic!("{e}"));
     }
 }
+
+/// The same check on a real 1024×512 sun-and-sky map (half a million texels, one tiny sun),
+/// binned into 64×32 cells: large maps stress the precision of the texel choice.
+#[test]
+fn environment_sampler_matches_its_pdf_on_a_real_map() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets/hdri/rooitou_park_1k.hdr");
+    let hdri = Hdri::load(&path).expect("built-in HDRI");
+    let (w, h) = (hdri.width, hdri.height);
+    let transform = EnvTransform {
+        rotation_deg: 30.0,
+        flip: false,
+    };
+    let light = EnvLight {
+        name: "rooitou".into(),
+        hdri,
+        transform,
+    };
+    let p = probe();
+    let n = 2_000_000;
+    let (bw, bh) = (64u32, 32u32);
+    let bin = |uv: [f32; 2]| {
+        let x = ((uv[0] * bw as f32) as u32).min(bw - 1);
+        let y = ((uv[1] * bh as f32) as u32).min(bh - 1);
+        (y * bw + x) as usize
+    };
+    let mut observed = vec![0.0; (bw * bh) as usize];
+    for (d, _) in p.env_samples(&light, n, 5).expect("env samples") {
+        observed[bin(lightfarm_light::dir_to_uv(transform.world_to_env(d)))] += 1.0;
+    }
+    let centres: Vec<[f32; 3]> = (0..w * h)
+        .map(|i| {
+            let uv = [
+                ((i % w) as f32 + 0.5) / w as f32,
+                ((i / w) as f32 + 0.5) / h as f32,
+            ];
+            transform.env_to_world(lightfarm_light::uv_to_dir(uv))
+        })
+        .collect();
+    let pdfs = p.env_eval(&light, &centres).expect("env pdf");
+    let mut expected = vec![0.0; (bw * bh) as usize];
+    for i in 0..(w * h) as usize {
+        let uv = [
+            ((i as u32 % w) as f32 + 0.5) / w as f32,
+            ((i as u32 / w) as f32 + 0.5) / h as f32,
+        ];
+        let p_uv = pdfs[i].0 as f64 * 2.0 * PI * PI * (PI * uv[1] as f64).sin();
+        expected[bin(uv)] += p_uv / (w * h) as f64 * n as f64;
+    }
+    common::chi2_test("env rooitou_park", &observed, &expected, 1)
+        .unwrap_or_else(|e| panic!("{e}"));
+}
