@@ -217,6 +217,40 @@ fn smooth_dielectric_reflects_with_fresnel_probability() {
     }
 }
 
+/// Index of the `bw`×`bh` (u, v) bin that a world direction falls in, in the light's own frame.
+fn env_bin(light: &EnvLight, d: [f32; 3], bw: u32, bh: u32) -> usize {
+    let uv = lightfarm_light::dir_to_uv(light.transform.world_to_env(d));
+    let x = ((uv[0] * bw as f32) as u32).min(bw - 1);
+    let y = ((uv[1] * bh as f32) as u32).min(bh - 1);
+    (y * bw + x) as usize
+}
+
+/// Probability of every texel of `light`'s map, from the device's own env_pdf() at the texel
+/// centres: the pdf is constant in (u, v) over a texel, so this is exact.
+fn texel_probabilities(p: &Probe, light: &EnvLight) -> Vec<f64> {
+    let (w, h) = (light.hdri.width, light.hdri.height);
+    let uv = |i: u32| {
+        [
+            ((i % w) as f32 + 0.5) / w as f32,
+            ((i / w) as f32 + 0.5) / h as f32,
+        ]
+    };
+    let centres: Vec<[f32; 3]> = (0..w * h)
+        .map(|i| {
+            light
+                .transform
+                .env_to_world(lightfarm_light::uv_to_dir(uv(i)))
+        })
+        .collect();
+    let pdfs = p.env_eval(light, &centres).expect("env pdf");
+    (0..w * h)
+        .map(|i| {
+            let p_uv = pdfs[i as usize].0 as f64 * 2.0 * PI * PI * (PI * uv(i)[1] as f64).sin();
+            p_uv / (w * h) as f64
+        })
+        .collect()
+}
+
 /// The environment sampler on a map with a hot texel and a gradient: bins are the texels
 /// themselves, where the pdf in (u, v) is exactly constant, so expected counts are exact.
 #[test]
@@ -249,28 +283,11 @@ fn environment_sampler_matches_its_pdf() {
         let mut observed = vec![0.0; (w * h) as usize];
         for (d, pdf) in &samples {
             assert!(*pdf > 0.0, "sampled direction with pdf 0");
-            let uv = lightfarm_light::dir_to_uv(transform.world_to_env(*d));
-            let x = ((uv[0] * w as f32) as u32).min(w - 1);
-            let y = ((uv[1] * h as f32) as u32).min(h - 1);
-            observed[(y * w + x) as usize] += 1.0;
+            observed[env_bin(&light, *d, w, h)] += 1.0;
         }
-        // pdf at each texel centre, in world space through the device's own env_pdf().
-        let centres: Vec<[f32; 3]> = (0..w * h)
-            .map(|i| {
-                let uv = [
-                    ((i % w) as f32 + 0.5) / w as f32,
-                    ((i / w) as f32 + 0.5) / h as f32,
-                ];
-                transform.env_to_world(lightfarm_light::uv_to_dir(uv))
-            })
-            .collect();
-        let pdfs = p.env_eval(&light, &centres).expect("env pdf");
-        let expected: Vec<f64> = (0..(w * h) as usize)
-            .map(|i| {
-                let v = ((i as u32 / w) as f64 + 0.5) / h as f64;
-                let p_uv = pdfs[i].0 as f64 * 2.0 * PI * PI * (PI * v).sin();
-                p_uv / (w * h) as f64 * SAMPLES as f64
-            })
+        let expected: Vec<f64> = texel_probabilities(&p, &light)
+            .iter()
+            .map(|q| q * SAMPLES as f64)
             .collect();
         let total: f64 = expected.iter().sum::<f64>() / SAMPLES as f64;
         assert!((total - 1.0).abs() < 1e-3, "env pdf integrates to {total}");
@@ -299,33 +316,18 @@ fn environment_sampler_matches_its_pdf_on_a_real_map() {
     let p = probe();
     let n = 2_000_000;
     let (bw, bh) = (64u32, 32u32);
-    let bin = |uv: [f32; 2]| {
-        let x = ((uv[0] * bw as f32) as u32).min(bw - 1);
-        let y = ((uv[1] * bh as f32) as u32).min(bh - 1);
-        (y * bw + x) as usize
-    };
     let mut observed = vec![0.0; (bw * bh) as usize];
     for (d, _) in p.env_samples(&light, n, 5).expect("env samples") {
-        observed[bin(lightfarm_light::dir_to_uv(transform.world_to_env(d)))] += 1.0;
+        observed[env_bin(&light, d, bw, bh)] += 1.0;
     }
-    let centres: Vec<[f32; 3]> = (0..w * h)
-        .map(|i| {
-            let uv = [
-                ((i % w) as f32 + 0.5) / w as f32,
-                ((i / w) as f32 + 0.5) / h as f32,
-            ];
-            transform.env_to_world(lightfarm_light::uv_to_dir(uv))
-        })
-        .collect();
-    let pdfs = p.env_eval(&light, &centres).expect("env pdf");
     let mut expected = vec![0.0; (bw * bh) as usize];
-    for i in 0..(w * h) as usize {
-        let uv = [
+    for (i, q) in texel_probabilities(&p, &light).into_iter().enumerate() {
+        let texel_centre = lightfarm_light::uv_to_dir([
             ((i as u32 % w) as f32 + 0.5) / w as f32,
             ((i as u32 / w) as f32 + 0.5) / h as f32,
-        ];
-        let p_uv = pdfs[i].0 as f64 * 2.0 * PI * PI * (PI * uv[1] as f64).sin();
-        expected[bin(uv)] += p_uv / (w * h) as f64 * n as f64;
+        ]);
+        expected[env_bin(&light, light.transform.env_to_world(texel_centre), bw, bh)] +=
+            q * n as f64;
     }
     common::chi2_test("env rooitou_park", &observed, &expected, 1)
         .unwrap_or_else(|e| panic!("{e}"));
