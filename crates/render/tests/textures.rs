@@ -4,7 +4,7 @@
 mod common;
 
 use glam::Mat4;
-use lightfarm_render::scene::{shapes, Material, Scene, Texture};
+use lightfarm_render::scene::{shapes, Scene, Texture};
 
 fn srgb_to_linear(c: u8) -> f32 {
     let c = c as f32 / 255.0;
