@@ -42,6 +42,12 @@ lf_mesa_setup() {
         [ -f "$f" ] || continue
         case "$(basename "$f")" in lvp_icd*) ;; *) icds="$icds:$f" ;; esac
     done
+    # A driver whose libraries do not resolve would leave no device at all: keep the system's.
+    if LD_LIBRARY_PATH="$dir/root/usr/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}" \
+        ldd "$dir/root/usr/lib/x86_64-linux-gnu/libvulkan_lvp.so" 2>/dev/null | grep -q 'not found'; then
+        echo "lavapipe: the backports driver misses libraries here, keeping the system's" >&2
+        return 0
+    fi
     export VK_ICD_FILENAMES="$icds"
     export LD_LIBRARY_PATH="$dir/root/usr/lib/x86_64-linux-gnu${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 }
