@@ -185,7 +185,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         var rng = rng_init(p, s, params.seed);
         let ray = camera_ray(gid.xy, rng_next2(&rng));
         let l = trace_path(ray, p, pc.light, &rng, &rays);
-        // A non-finite sample would poison the pixel forever: drop it (counted by the host as NaN-free output).
+        // A non-finite sample would poison the pixel's sum for good: drop it.
         if (all(l == l) && max3(l) < 3.0e38) {
             sum += l;
         }
