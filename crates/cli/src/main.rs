@@ -1,6 +1,7 @@
 //! `lightfarm`: the command line of the virtual light stage.
 
 mod render_cmd;
+mod spec_cmd;
 
 use clap::{Parser, Subcommand};
 use tracing_subscriber::EnvFilter;
@@ -22,6 +23,12 @@ enum Command {
     Render(Box<render_cmd::RenderArgs>),
     /// List the Vulkan devices lightfarm can render on.
     Devices,
+    /// Dataset specs: expand a sample index into its full description, check a spec.
+    #[command(subcommand)]
+    Spec(spec_cmd::SpecCommand),
+    /// The asset catalog: list, verify hashes.
+    #[command(subcommand)]
+    Assets(spec_cmd::AssetsCommand),
 }
 
 fn main() {
@@ -35,6 +42,8 @@ fn main() {
     let result = match cli.command {
         Command::Render(args) => render_cmd::run(*args),
         Command::Devices => render_cmd::devices(),
+        Command::Spec(c) => spec_cmd::spec(c),
+        Command::Assets(c) => spec_cmd::assets(c),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
