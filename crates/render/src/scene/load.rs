@@ -7,6 +7,7 @@ use std::path::Path;
 use glam::{Mat4, Vec3};
 
 use super::geometry::{orthogonal_up, smooth_normals, unit_or_fallback, uv_tangents};
+use super::morph::{read_primitive_targets, target_names, MorphMerge};
 use super::{Camera, Instance, Material, Mesh, Scene, SceneError, Texture};
 
 /// Deeper hierarchies than this are almost certainly cycles, which the glTF validator of the
@@ -19,7 +20,7 @@ pub(crate) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
             path: path.to_path_buf(),
         });
     }
-    let (doc, buffers, images) = gltf::import(path).map_err(|source| SceneError::Gltf {
+    let (doc, buffers, images) = import_lenient(path).map_err(|source| SceneError::Gltf {
         path: path.to_path_buf(),
         source,
     })?;
@@ -128,6 +129,46 @@ pub(crate) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
     Ok(scene)
 }
 
+type Imported = (
+    gltf::Document,
+    Vec<gltf::buffer::Data>,
+    Vec<gltf::image::Data>,
+);
+
+/// `gltf::import`, except that an accessor with neither `bufferView` nor `sparse` is accepted.
+/// glTF 2.0 defines such an accessor as all zeros, and blend-shape exporters emit them for
+/// targets that do not touch a primitive, but the `gltf` 1.4 validator reports them as
+/// missing and would reject the whole file. Every other validation error still fails the
+/// load; base attributes and indices without a bufferView are rejected by [`check_accessor`].
+fn import_lenient(path: &Path) -> Result<Imported, gltf::Error> {
+    use gltf::json::validation::{Error as Invalid, Validate};
+    let file = std::fs::File::open(path).map_err(gltf::Error::Io)?;
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_reader_without_validation(std::io::BufReader::new(file))?;
+    let json = document.as_json();
+    let mut errors = Vec::new();
+    json.validate(json, gltf::json::Path::new, &mut |path, error| {
+        let path = path();
+        let zero_accessor = matches!(error, Invalid::Missing) && {
+            let p = path.as_str();
+            p.starts_with("accessors[")
+                && p.ends_with("].bufferView")
+                && p.matches('.').count() == 1
+        };
+        if !zero_accessor {
+            errors.push((path, error));
+        }
+    });
+    if !errors.is_empty() {
+        return Err(gltf::Error::Validation(errors));
+    }
+    // Same base directory rule as `gltf::import`, for external buffers and images.
+    let base = path.parent().unwrap_or_else(|| Path::new("./"));
+    let buffers = gltf::import_buffers(&document, Some(base), blob)?;
+    let images = gltf::import_images(&document, Some(base), &buffers)?;
+    Ok((document, buffers, images))
+}
+
 fn bad_texture(path: &Path, index: usize, reason: String) -> SceneError {
     SceneError::BadTexture {
         path: path.to_path_buf(),
@@ -219,7 +260,9 @@ fn load_mesh(
         tangents: Vec::new(),
         indices: Vec::new(),
         triangle_materials: Vec::new(),
+        morph_targets: Vec::new(),
     };
+    let mut morphs = MorphMerge::new();
     for prim in mesh.primitives() {
         if prim.mode() != gltf::mesh::Mode::Triangles {
             tracing::warn!(path = %path.display(), mesh = %name, mode = ?prim.mode(), "skipping a non-triangle primitive");
@@ -300,6 +343,7 @@ fn load_mesh(
             (Some(uv), None) => uv_tangents(&positions, &normals, uv, &indices),
             (None, None) => vec![[0.0; 4]; n],
         };
+        let prim_targets = read_primitive_targets(&prim, buffers, n).map_err(&bad)?;
         let material = match prim.material().index() {
             Some(m) => m as u32,
             None => *default_material.get_or_insert_with(|| {
@@ -319,7 +363,16 @@ fn load_mesh(
         out.normals.extend(normals);
         out.uvs.extend(uvs.unwrap_or_else(|| vec![[0.0; 2]; n]));
         out.tangents.extend(tangents);
+        morphs.push(&name, prim_targets, n);
     }
+    let target_count = mesh
+        .primitives()
+        .find(|p| p.mode() == gltf::mesh::Mode::Triangles)
+        .map_or(0, |p| p.morph_targets().len());
+    let names = (target_count > 0)
+        .then(|| target_names(mesh, target_count))
+        .flatten();
+    out.morph_targets = morphs.finish(names);
     Ok((!out.indices.is_empty()).then_some(out))
 }
 

@@ -5,6 +5,7 @@ mod camera;
 pub mod export;
 mod geometry;
 mod load;
+mod morph;
 pub mod shapes;
 
 use std::path::PathBuf;
@@ -49,6 +50,8 @@ pub enum SceneError {
     BadCamera { reason: String },
     #[error("cannot write {}: {reason}", path.display())]
     Export { path: PathBuf, reason: String },
+    #[error("mesh '{mesh}': cannot apply morph weights: {reason}")]
+    BadMorph { mesh: String, reason: String },
 }
 
 /// One BLAS: all triangle primitives of one glTF mesh, merged.
@@ -67,6 +70,19 @@ pub struct Mesh {
     pub indices: Vec<u32>,
     /// One per triangle, index into [`Scene::materials`].
     pub triangle_materials: Vec<u32>,
+    /// Blend shapes in file order; see [`Mesh::apply_morphs`].
+    pub morph_targets: Vec<MorphTarget>,
+}
+
+/// One glTF morph target (blend shape) of a merged [`Mesh`]: per-vertex offsets in the same
+/// vertex order as [`Mesh::positions`].
+#[derive(Clone, Debug)]
+pub struct MorphTarget {
+    /// From the mesh's `extras.targetNames`, else `target{i}`.
+    pub name: String,
+    pub position_deltas: Vec<[f32; 3]>,
+    /// Empty when the file has no NORMAL deltas for this target.
+    pub normal_deltas: Vec<[f32; 3]>,
 }
 
 impl Mesh {

@@ -137,6 +137,7 @@ pub fn quad(width: f32, height: f32) -> Mesh {
         tangents: vec![[1.0, 0.0, 0.0, 1.0]; 4],
         indices: vec![0, 1, 2, 0, 2, 3],
         triangle_materials: vec![0; 2],
+        morph_targets: Vec::new(),
     }
 }
 
@@ -177,6 +178,7 @@ impl Builder {
             tangents: self.tangents,
             indices: self.indices,
             triangle_materials: vec![0; triangles],
+            morph_targets: Vec::new(),
         }
     }
 }
