@@ -38,7 +38,7 @@ struct Material {
     spec_color_ior: vec4<f32>,
     // base texture, metallic-roughness texture, normal texture, flags (NO_TEX when absent)
     tex: vec4<u32>,
-    // normal scale, unused x3
+    // normal scale, opacity (coverage; < 1 is stochastically see-through), unused x2
     extra: vec4<f32>,
 };
 

@@ -157,7 +157,9 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
             let slot = inst.tri_offset + prims.x + local;
             let tmax = select((*best).t, 3.4e38, (*best).t < 0.0);
             let h = intersect_triangle(slot, origin, dir, tmin, tmax);
-            if (h.x >= 0.0 && ((*best).t < 0.0 || h.x < (*best).t)) {
+            // Shadow rays (any hit) see through mostly transparent surfaces (opacity < 0.5).
+            let see_through = any_hit && materials[bitcast<u32>(tri_attr[slot * TRI_ATTR_VEC4S + 3u].w)].extra.y < 0.5;
+            if (h.x >= 0.0 && ((*best).t < 0.0 || h.x < (*best).t) && !see_through) {
                 *best = Hit(h.x, inst_id, slot, h.y, h.z);
                 found = true;
                 if (any_hit) {

@@ -46,11 +46,15 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
             return tr;
         }
         let mat = materials[bitcast<u32>(tri_attr[h.tri * TRI_ATTR_VEC4S + 3u].w)];
-        if (any_hit || (mat.tex.w & MAT_FLAG_LENS) == 0u) {
+        if (any_hit || ((mat.tex.w & MAT_FLAG_LENS) == 0u && mat.extra.y >= 0.5)) {
             return 0.0;
         }
         let sp = shade_hit(Ray(origin, dir, 0.0, 3.4e38), h);
-        tr *= 1.0 - fresnel_dielectric(abs(dot(dir, sp.ng)), max(mat.spec_color_ior.w, 1.0001));
+        if ((mat.tex.w & MAT_FLAG_LENS) != 0u) {
+            tr *= 1.0 - fresnel_dielectric(abs(dot(dir, sp.ng)), max(mat.spec_color_ior.w, 1.0001));
+        } else {
+            tr *= 1.0 - mat.extra.y;
+        }
         origin = offset_origin(sp.p, sp.ng, dir);
     }
     return 0.0;
@@ -82,6 +86,13 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
             break;
         }
         let sp = shade_hit(ray, hit);
+        // Partial coverage (glTF alpha): the surface is there with probability `opacity`; otherwise
+        // the ray goes on along the same line (this counts as one of the path's events).
+        let opacity = materials[sp.material].extra.y;
+        if (opacity < 1.0 && rng_next(rng) >= opacity) {
+            ray.tmin = hit.t * (1.0 + 1e-5) + 1e-6;
+            continue;
+        }
         let wo = to_local(sp.frame, -ray.dir);
         let delta = is_dielectric_delta(sp.surface);
         if ((sp.flags & MAT_FLAG_LENS) == 0u) {
@@ -154,6 +165,11 @@ fn aux_passes(first: Ray, first_hit: Hit, p: u32, rays: ptr<function, u32>) {
             return;
         }
         let sp = shade_hit(ray, hit);
+        if (materials[sp.material].extra.y < 0.5) {
+            // Mostly transparent (a cornea, a glTF BLEND veil): the passes look through it.
+            ray.tmin = hit.t * (1.0 + 1e-5) + 1e-6;
+            continue;
+        }
         if ((sp.flags & MAT_FLAG_LENS) != 0u) {
             if (!lens_done) {
                 accum_aux[4u * p + 2u] += vec4<f32>(to_camera(sp.frame.n), 1.0);

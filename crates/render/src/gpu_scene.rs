@@ -79,7 +79,7 @@ fn material_gpu(m: &Material, texture_count: u32) -> MaterialGpu {
             tex(m.normal_texture),
             if lens { MAT_FLAG_LENS } else { 0 },
         ],
-        extra: [m.normal_scale, 0.0, 0.0, 0.0],
+        extra: [m.normal_scale, m.opacity.clamp(0.0, 1.0), 0.0, 0.0],
     }
 }
 

@@ -53,7 +53,7 @@ pub struct MaterialGpu {
     pub spec_color_ior: [f32; 4],
     /// base, metallic-roughness, normal texture (NO_TEX when absent), flags
     pub tex: [u32; 4],
-    /// normal scale
+    /// normal scale, opacity
     pub extra: [f32; 4],
 }
 

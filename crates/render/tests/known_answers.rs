@@ -257,3 +257,42 @@ fn same_seed_same_image_other_seed_other_noise() {
     assert_ne!(a.lit[0], c.lit[0]);
     assert_eq!(a.lit.len(), 2);
 }
+
+/// glTF alpha: a mostly transparent veil (opacity 0.1, like MakeHuman's corneas) in front of the
+/// sphere is invisible to the passes and dims the image by about its opacity; an opaque one hides
+/// the sphere.
+#[test]
+fn partial_coverage_is_seen_through() {
+    let size = 24u32;
+    let light = [common::constant_light(1.0)];
+    let plain = common::render(&common::sphere_scene(0.5), &light, size, 64, 4);
+    let veiled = |opacity: f32| {
+        let mut scene = common::sphere_scene(0.5);
+        let mut m = common::material(0.9, 0.0);
+        m.opacity = opacity;
+        scene.add_mesh_instance(
+            shapes::quad(3.0, 3.0),
+            m,
+            Mat4::from_translation(Vec3::new(0.0, 0.0, 1.0)),
+        );
+        common::render(&scene, &light, size, 64, 4)
+    };
+    let thin = veiled(0.1);
+    let centre = ((size / 2) * size + size / 2) as usize;
+    assert_eq!(thin.mask, plain.mask, "the veil does not count in the mask");
+    assert!(
+        (thin.albedo[centre][0] - 0.5).abs() < 1e-4,
+        "albedo seen through the veil: {:?}",
+        thin.albedo[centre]
+    );
+    let (a, b) = (plain.lit[0][centre][0], thin.lit[0][centre][0]);
+    // 10% of camera rays stop at the veil, which (diffuse 0.9, lit by 1 from the front and the
+    // sphere behind) is bright too: the pixel stays within a few tenths of the plain value.
+    assert!((b - a).abs() < 0.15, "veiled {b} vs plain {a}");
+    let opaque = veiled(1.0);
+    assert!(
+        (opaque.albedo[centre][0] - 0.9).abs() < 1e-4,
+        "an opaque veil hides the sphere: {:?}",
+        opaque.albedo[centre]
+    );
+}

@@ -232,6 +232,17 @@ fn convert_material(m: gltf::Material) -> Material {
             .map_or(defaults.transmission, |t| t.transmission_factor()),
         ior: m.ior().unwrap_or(defaults.ior),
         double_sided: m.double_sided(),
+        opacity: match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => 1.0,
+            gltf::material::AlphaMode::Blend => pbr.base_color_factor()[3].clamp(0.0, 1.0),
+            gltf::material::AlphaMode::Mask => {
+                if pbr.base_color_factor()[3] >= m.alpha_cutoff().unwrap_or(0.5) {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+        },
     }
 }
 

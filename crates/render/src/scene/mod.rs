@@ -121,6 +121,9 @@ pub struct Material {
     /// KHR_materials_ior.
     pub ior: f32,
     pub double_sided: bool,
+    /// Coverage in [0, 1] (glTF alpha): 1 for OPAQUE, the base-colour alpha for BLEND, 0 or 1 by
+    /// the cutoff for MASK. Rendered as stochastic see-through (MakeHuman's corneas are BLEND 0.08).
+    pub opacity: f32,
 }
 
 impl Default for Material {
@@ -140,6 +143,7 @@ impl Default for Material {
             transmission: 0.0,
             ior: 1.5,
             double_sided: false,
+            opacity: 1.0,
         }
     }
 }
