@@ -92,9 +92,19 @@ fn alias_table(probs: &[f64]) -> Vec<(f32, u32)> {
             small.push(l);
         }
     }
-    // Leftovers are 1 up to rounding: always keep them.
+    // Leftovers are 1 up to rounding: keep them — except cells of probability 0, which rounding
+    // can strand here when most of the map has none (compensated maps): send those elsewhere.
+    let fallback = probs
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(i, _)| i as u32);
     for i in small.into_iter().chain(large) {
-        table[i] = (1.0, i as u32);
+        table[i] = if probs[i] > 0.0 {
+            (1.0, i as u32)
+        } else {
+            (0.0, fallback)
+        };
     }
     table
 }
@@ -117,5 +127,23 @@ mod tests {
             assert!((g - p).abs() < 1e-6, "{got:?} vs {probs:?}");
         }
         assert_eq!(table[1].0, 0.0, "a zero-probability cell is never kept");
+    }
+
+    #[test]
+    fn zero_cells_are_never_kept_even_when_rounding_strands_them() {
+        // Mostly zeros and a few uneven cells: rounding leaves some cells on the worklists.
+        let mut probs = vec![0.0f64; 1000];
+        for (k, i) in [3usize, 77, 500, 999].iter().enumerate() {
+            probs[*i] = [0.1, 0.2, 0.3, 0.4][k];
+        }
+        for (i, (keep, alias)) in alias_table(&probs).iter().enumerate() {
+            if probs[i] == 0.0 {
+                assert_eq!(*keep, 0.0, "cell {i} of probability 0 is kept");
+            }
+            assert!(
+                probs[*alias as usize] > 0.0 || *keep == 1.0,
+                "cell {i} aliases a zero cell"
+            );
+        }
     }
 }
