@@ -7,6 +7,7 @@ struct ShadingPoint {
     frame: Frame,       // shading frame (z = shading normal, same side as ng)
     material: u32,
     flags: u32,         // material flags (MAT_FLAG_LENS)
+    opacity: f32,       // glTF alpha coverage
     surface: Surface,
     albedo: vec3<f32>,  // base colour at the hit (the albedo pass)
 };
@@ -52,7 +53,7 @@ fn shade_hit(ray: Ray, hit: Hit) -> ShadingPoint {
     let a4 = tri_attr[slot * TRI_ATTR_VEC4S + 4u];
     let w = 1.0 - hit.u - hit.v;
     let uv = vec2<f32>(a0.w, a1.w) * w + vec2<f32>(a2.w, a3.x) * hit.u + a3.yz * hit.v;
-    let mat_id = bitcast<u32>(a3.w);
+    let mat_id = triangle_material(slot);
     let mat = materials[mat_id];
 
     let v0 = tri_pos[slot * 3u].xyz;
@@ -110,7 +111,7 @@ fn shade_hit(ray: Ray, hit: Hit) -> ShadingPoint {
         ior = 1.0 / ior;
     }
     let surface = Surface(base, clamp(metallic, 0.0, 1.0), alpha, mat.mrst.z, mat.spec_color_ior.xyz, mat.mrst.w, ior);
-    return ShadingPoint(p, ng, frame, mat_id, mat.tex.w, surface, base);
+    return ShadingPoint(p, ng, frame, mat_id, mat.tex.w, mat.extra.y, surface, base);
 }
 
 // Offsets a ray origin off the surface along the geometric normal, scaled with the magnitude of

@@ -131,6 +131,11 @@ fn intersect_triangle(slot: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, t
     return vec3<f32>(-1.0, 0.0, 0.0);
 }
 
+// Material index of a triangle slot (a3.w of its attributes).
+fn triangle_material(slot: u32) -> u32 {
+    return bitcast<u32>(tri_attr[slot * TRI_ATTR_VEC4S + 3u].w);
+}
+
 fn transform_point(m: mat4x4<f32>, p: vec3<f32>) -> vec3<f32> {
     return (m * vec4<f32>(p, 1.0)).xyz;
 }
@@ -158,7 +163,7 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
             let tmax = select((*best).t, 3.4e38, (*best).t < 0.0);
             let h = intersect_triangle(slot, origin, dir, tmin, tmax);
             // Shadow rays (any hit) see through mostly transparent surfaces (opacity < 0.5).
-            let see_through = any_hit && materials[bitcast<u32>(tri_attr[slot * TRI_ATTR_VEC4S + 3u].w)].extra.y < 0.5;
+            let see_through = any_hit && materials[triangle_material(slot)].extra.y < 0.5;
             if (h.x >= 0.0 && ((*best).t < 0.0 || h.x < (*best).t) && !see_through) {
                 *best = Hit(h.x, inst_id, slot, h.y, h.z);
                 found = true;

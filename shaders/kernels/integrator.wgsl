@@ -45,7 +45,7 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
         if (h.t < 0.0) {
             return tr;
         }
-        let mat = materials[bitcast<u32>(tri_attr[h.tri * TRI_ATTR_VEC4S + 3u].w)];
+        let mat = materials[triangle_material(h.tri)];
         if (any_hit || ((mat.tex.w & MAT_FLAG_LENS) == 0u && mat.extra.y >= 0.5)) {
             return 0.0;
         }
@@ -88,8 +88,7 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
         let sp = shade_hit(ray, hit);
         // Partial coverage (glTF alpha): the surface is there with probability `opacity`; otherwise
         // the ray goes on along the same line (this counts as one of the path's events).
-        let opacity = materials[sp.material].extra.y;
-        if (opacity < 1.0 && rng_next(rng) >= opacity) {
+        if (sp.opacity < 1.0 && rng_next(rng) >= sp.opacity) {
             ray.tmin = hit.t * (1.0 + 1e-5) + 1e-6;
             continue;
         }
@@ -165,7 +164,7 @@ fn aux_passes(first: Ray, first_hit: Hit, p: u32, rays: ptr<function, u32>) {
             return;
         }
         let sp = shade_hit(ray, hit);
-        if (materials[sp.material].extra.y < 0.5) {
+        if (sp.opacity < 0.5) {
             // Mostly transparent (a cornea, a glTF BLEND veil): the passes look through it.
             ray.tmin = hit.t * (1.0 + 1e-5) + 1e-6;
             continue;
