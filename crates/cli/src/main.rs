@@ -1,6 +1,9 @@
 //! `lightfarm`: the command line of the virtual light stage.
 
+mod farm_cmd;
+mod preview_cmd;
 mod render_cmd;
+mod sheet;
 mod spec_cmd;
 
 use clap::{Parser, Subcommand};
@@ -29,6 +32,28 @@ enum Command {
     /// The asset catalog: list, verify hashes.
     #[command(subcommand)]
     Assets(spec_cmd::AssetsCommand),
+    /// Render a few samples of a dataset spec small and write a labelled contact sheet
+    /// (lit0 | lit1 | albedo | normal | normal_lens | mask per sample).
+    Preview(Box<preview_cmd::PreviewArgs>),
+    /// Run a service: the coordinator or a render worker.
+    #[command(subcommand)]
+    Serve(farm_cmd::Serve),
+    /// Submit a dataset spec to the coordinator; prints the job id.
+    Submit(farm_cmd::SubmitArgs),
+    /// Follow a job's progress (rate, ETA) until it ends.
+    Watch(farm_cmd::JobArgs),
+    /// List jobs.
+    Jobs(farm_cmd::JobsArgs),
+    /// Cancel a job.
+    Cancel(farm_cmd::JobArgs),
+    /// Pause a job (no new leases; running samples finish).
+    Pause(farm_cmd::JobArgs),
+    /// Resume a paused job.
+    Resume(farm_cmd::JobArgs),
+    /// List committed samples.
+    Samples(farm_cmd::SamplesArgs),
+    /// Export a job's committed samples as WebDataset tar shards or a folder of EXR + JSON.
+    Export(farm_cmd::ExportArgs),
 }
 
 fn main() {
@@ -44,6 +69,16 @@ fn main() {
         Command::Devices => render_cmd::devices(),
         Command::Spec(c) => spec_cmd::spec(c),
         Command::Assets(c) => spec_cmd::assets(c),
+        Command::Preview(args) => preview_cmd::run(*args),
+        Command::Serve(c) => farm_cmd::serve(c),
+        Command::Submit(a) => farm_cmd::submit(a),
+        Command::Watch(a) => farm_cmd::watch(a),
+        Command::Jobs(a) => farm_cmd::jobs(a),
+        Command::Cancel(a) => farm_cmd::job_action(a, "cancel"),
+        Command::Pause(a) => farm_cmd::job_action(a, "pause"),
+        Command::Resume(a) => farm_cmd::job_action(a, "resume"),
+        Command::Samples(a) => farm_cmd::samples(a),
+        Command::Export(a) => farm_cmd::export(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

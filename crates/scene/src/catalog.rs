@@ -81,7 +81,34 @@ pub struct Asset {
     /// Free-form facts used by `tag:KEY=VALUE` selectors (gender, age_band, setting, …).
     #[serde(default)]
     pub tags: BTreeMap<String, String>,
+    /// Heads not authored in the canonical head frame (metres, +Y up, face towards +Z, origin
+    /// near the skull base): `canonical = scale * file + translate`.
+    #[serde(default)]
+    pub frame: Option<AssetFrame>,
+    /// Heads without eye meshes (scans): anatomical landmarks in the canonical frame, which
+    /// glasses, headsets and hair are fitted to. Heads with eye meshes have theirs detected.
+    #[serde(default)]
+    pub landmarks: Option<BTreeMap<String, [f64; 3]>>,
 }
+
+/// A uniform scale and a translation bringing an asset into the canonical frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AssetFrame {
+    pub scale: f64,
+    #[serde(default)]
+    pub translate: [f64; 3],
+}
+
+/// The landmark names a catalog `landmarks` table must give, all of them.
+pub const LANDMARK_NAMES: [&str; 6] = [
+    "eye_left",
+    "eye_right",
+    "ear_left",
+    "ear_right",
+    "nose_bridge",
+    "crown",
+];
 
 /// A loaded and validated catalog.
 #[derive(Clone, Debug)]
@@ -359,7 +386,7 @@ fn parse_asset(i: usize, value: toml::Value) -> Result<Asset, KeyError> {
             format!("asset[{i}]"),
             format!(
                 "{} (required: id, kind, path, blake3, license; optional: attribution, \
-                 identity, tags)",
+                 identity, tags, frame, landmarks)",
                 e.message()
             ),
         )
@@ -443,6 +470,42 @@ fn validate_asset(i: usize, asset: &mut Asset) -> Result<(), KeyError> {
             ));
         }
         (_, None) => {}
+    }
+    if let Some(frame) = &asset.frame {
+        let finite = frame.translate.iter().all(|v| v.is_finite());
+        if !(frame.scale.is_finite() && frame.scale > 0.0) || !finite {
+            return Err((
+                key("frame"),
+                format!(
+                    "scale {} must be a positive finite number and translate {:?} finite: \
+                     canonical = scale * file + translate",
+                    frame.scale, frame.translate
+                ),
+            ));
+        }
+    }
+    if let Some(landmarks) = &asset.landmarks {
+        if asset.kind != AssetKind::Head {
+            return Err((
+                key("landmarks"),
+                format!("only heads have landmarks, this asset is a {}: remove the key", asset.kind),
+            ));
+        }
+        if let Some(unknown) = landmarks.keys().find(|k| !LANDMARK_NAMES.contains(&k.as_str())) {
+            return Err((
+                key("landmarks"),
+                format!("unknown landmark `{unknown}`: give exactly {}", LANDMARK_NAMES.join(", ")),
+            ));
+        }
+        if let Some(missing) = LANDMARK_NAMES.iter().find(|n| !landmarks.contains_key(**n)) {
+            return Err((
+                key("landmarks"),
+                format!("`{missing}` is missing: give all of {}", LANDMARK_NAMES.join(", ")),
+            ));
+        }
+        if landmarks.values().flatten().any(|v| !v.is_finite()) {
+            return Err((key("landmarks"), "every coordinate must be finite".into()));
+        }
     }
     Ok(())
 }

@@ -37,6 +37,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
+use crate::catalog::{Asset, Catalog};
 use crate::error::SceneError;
 use crate::rng::SampleRng;
 use crate::spec::{AssetRef, ResolvedSpec};
@@ -271,6 +272,8 @@ pub struct HairSample {
     pub length_m: f64,
     pub curl: f64,
     pub clumping: f64,
+    /// Seed of the strand geometry (root positions, jitter, curl phases).
+    pub seed: u64,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -364,10 +367,14 @@ pub fn expand(spec: &ResolvedSpec, index: u64) -> Result<SampleSpec, SceneError>
         Split::Train
     };
 
-    let expression = sample_expression(
-        &mut stream(STREAM_EXPRESSION),
-        spec.subject.expression_probability,
-    );
+    // A scan or a PCA head without blendshapes cannot show an expression; asking it for one
+    // would make the JSON claim a smile the image does not have.
+    let expression_probability = if head.has_morphs {
+        spec.subject.expression_probability
+    } else {
+        0.0
+    };
+    let expression = sample_expression(&mut stream(STREAM_EXPRESSION), expression_probability);
     let hair = sample_hair(spec, &mut stream(STREAM_HAIR)).ok_or_else(|| {
         invalid(
             "subject.hair_styles",
@@ -513,6 +520,8 @@ fn sample_hair(spec: &ResolvedSpec, rng: &mut SampleRng) -> Option<HairSample> {
         length_m: draw(r.length_m),
         curl: draw(r.curl),
         clumping: draw(r.clumping),
+        // 53 bits: exact in every JSON reader, including JavaScript's and Python's float paths.
+        seed: rng.next_u64() >> 11,
     })
 }
 
@@ -577,4 +586,36 @@ mod tests {
             );
         }
     }
+}
+
+/// Every catalog asset rendering `sample` reads: its head, garment (and the head whose body the
+/// garment was fitted to, which its placement measures), glasses, headset and both HDRIs. A
+/// worker fetches exactly these; an id the catalog lacks is an error naming it.
+pub fn required_assets<'a>(
+    sample: &SampleSpec,
+    catalog: &'a Catalog,
+) -> Result<Vec<&'a Asset>, SceneError> {
+    let missing = |id: &str| SceneError::Invalid {
+        path: catalog.root.join(crate::catalog::CATALOG_FILE),
+        key: id.to_owned(),
+        reason: "the sample names an asset this catalog does not have; expand the sample \
+                 against the catalog it will be rendered with"
+            .to_owned(),
+    };
+    let mut ids: Vec<&str> = vec![sample.head.id.as_str()];
+    ids.extend(sample.garment.iter().map(|g| g.id.as_str()));
+    ids.extend(sample.glasses.iter().map(|g| g.id.as_str()));
+    ids.extend(sample.headset.iter().map(|g| g.id.as_str()));
+    ids.extend(sample.lighting.iter().map(|l| l.hdri.as_str()));
+    let mut out: Vec<&Asset> = Vec::with_capacity(ids.len() + 1);
+    for id in ids {
+        let asset = catalog.get(id).ok_or_else(|| missing(id))?;
+        if let Some(body) = asset.tags.get("fitted_to") {
+            out.push(catalog.get(body).ok_or_else(|| missing(body))?);
+        }
+        out.push(asset);
+    }
+    out.sort_by(|a, b| a.id.cmp(&b.id));
+    out.dedup_by(|a, b| a.id == b.id);
+    Ok(out)
 }

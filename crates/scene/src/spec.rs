@@ -189,6 +189,9 @@ pub struct SplitSpec {
 pub struct AssetRef {
     pub id: String,
     pub blake3: String,
+    /// Heads: whether the file has the ARKit morph targets (catalog tag `morphs`); heads
+    /// without them are always rendered with a neutral expression.
+    pub has_morphs: bool,
 }
 
 impl AssetRef {
@@ -196,6 +199,7 @@ impl AssetRef {
         Self {
             id: asset.id.clone(),
             blake3: asset.blake3.clone(),
+            has_morphs: asset.tags.contains_key("morphs"),
         }
     }
 }

@@ -289,3 +289,53 @@ fn missing_file_fails_verify() {
     let reason = expect_invalid(catalog.verify(), "asset[0].path");
     assert!(reason.contains("gone.glb"), "{reason}");
 }
+
+#[test]
+fn frame_and_landmark_errors_name_the_key() {
+    let load = |name, text: String| Catalog::load(&write_catalog(name, &text));
+    let head = || entry("a", "head", "a.glb", GOOD_HASH);
+    let all = "eye_left = [0.03, 0.03, 0.08], eye_right = [-0.03, 0.03, 0.08], \
+               ear_left = [0.08, 0.02, -0.01], ear_right = [-0.08, 0.02, -0.01], \
+               nose_bridge = [0.0, 0.03, 0.1], crown = [0.0, 0.15, 0.0]";
+    // A complete, valid pair loads.
+    let ok = load(
+        "frame-ok",
+        head() + "frame = { scale = 0.05, translate = [0.0, -0.04, 0.0] }\n" + &format!("landmarks = {{ {all} }}\n"),
+    )
+    .unwrap_or_else(|e| panic!("valid frame/landmarks: {e}"));
+    let a = &ok.assets[0];
+    assert_eq!(a.frame.map(|f| f.scale), Some(0.05));
+    assert_eq!(a.landmarks.as_ref().map(|l| l.len()), Some(6));
+
+    for (name, extra) in [
+        ("scale0", "frame = { scale = 0.0 }\n".to_string()),
+        ("scaleneg", "frame = { scale = -1.0 }\n".to_string()),
+        ("scalenan", "frame = { scale = nan }\n".to_string()),
+        ("transinf", "frame = { scale = 1.0, translate = [inf, 0.0, 0.0] }\n".to_string()),
+    ] {
+        let reason = expect_invalid(load(name, head() + &extra), "asset[0].frame");
+        assert!(reason.contains("positive"), "{name}: {reason}");
+    }
+    let missing = all.replace("crown = [0.0, 0.15, 0.0]", "nose_tip = [0.0, 0.0, 0.1]");
+    let reason = expect_invalid(
+        load("lm-unknown", head() + &format!("landmarks = {{ {missing} }}\n")),
+        "asset[0].landmarks",
+    );
+    assert!(reason.contains("nose_tip"), "{reason}");
+    let short = all.replace(", crown = [0.0, 0.15, 0.0]", "");
+    let reason = expect_invalid(
+        load("lm-missing", head() + &format!("landmarks = {{ {short} }}\n")),
+        "asset[0].landmarks",
+    );
+    assert!(reason.contains("crown"), "{reason}");
+    let reason = expect_invalid(
+        load(
+            "lm-hdri",
+            entry("a", "hdri", "a.hdr", GOOD_HASH) + &format!("landmarks = {{ {all} }}\n"),
+        ),
+        "asset[0].landmarks",
+    );
+    assert!(reason.contains("only heads"), "{reason}");
+    // A frame key that is not scale/translate is a typo, not ignored.
+    expect_invalid(load("frame-typo", head() + "frame = { scael = 1.0 }\n"), "asset[0]");
+}

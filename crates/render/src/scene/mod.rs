@@ -89,6 +89,12 @@ impl Mesh {
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }
+
+    /// Replaces the normals by area-weighted smooth normals of the current positions, for
+    /// meshes deformed by something other than a rigid transform.
+    pub fn recompute_normals(&mut self) {
+        self.normals = geometry::smooth_normals(&self.positions, &self.indices);
+    }
 }
 
 /// Decoded image, RGBA8 as stored in the file (no colour-space conversion).

@@ -1,0 +1,17 @@
+//! The durable half of the lightfarm coordinator's data: content-addressed blobs (sample EXRs
+//! and assets), the sled index of committed samples, and export of committed samples to
+//! WebDataset tar shards or a folder. See README.md for what is deliberately not here.
+
+mod blob;
+mod disk;
+mod error;
+mod export;
+mod index;
+mod memory;
+
+pub use blob::{hash_hex, is_hash, BlobStore, BlobWriter, Hash};
+pub use disk::DiskBlobStore;
+pub use error::StoreError;
+pub use export::{export, read_export, ExportFormat, ExportReport, ExportWriter, ExportedSample};
+pub use index::{CommitOutcome, SampleIndex, SampleRecord};
+pub use memory::MemoryBlobStore;

@@ -1,0 +1,359 @@
+//! One [`SampleSpec`] → the scene, camera and lighting the renderer takes.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use glam::{Mat4, Quat, Vec3};
+use lightfarm_render::scene::{Camera, Material, Scene};
+use lightfarm_scene::catalog::{Asset, AssetKind, Catalog};
+use lightfarm_scene::expand::SampleSpec;
+
+use crate::garment::{Body, CoverMap, GarmentFit};
+use crate::glasses::place_glasses;
+use crate::hair::{grow_eyebrows, grow_hair, hair_albedo, Strands};
+use crate::head::Head;
+use crate::headset::fit_headset;
+use crate::landmarks::Landmarks;
+use crate::SubjectError;
+
+/// Where the camera looks, relative to the head: a little below the eyes and at the centre of
+/// the skull, so a 30° camera 1 m away frames the head and shoulders as in the paper's figures.
+const AIM_BELOW_EYES_M: f32 = 0.06;
+const AIM_BEHIND_EYES_M: f32 = 0.085;
+
+/// What the renderer needs for one sample.
+#[derive(Clone, Debug)]
+pub struct Assembled {
+    pub scene: Scene,
+    pub camera: Camera,
+    /// The two environment maps: file, rotation (degrees about +Y), horizontal flip.
+    pub lighting: Vec<(PathBuf, f32, bool)>,
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub seed: u32,
+    pub stats: AssemblyStats,
+}
+
+/// Sizes of what was built, for logs and tests.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct AssemblyStats {
+    pub hair_strands: usize,
+    pub eyebrow_strands: usize,
+    pub triangles: usize,
+    /// Skin triangles removed because the garment covers them.
+    pub hidden_skin_triangles: usize,
+}
+
+/// Resolves a sample's asset to its catalog entry and file, refusing a hash mismatch: a sample
+/// expanded against other bytes would otherwise render silently different.
+fn resolve<'a>(
+    catalog: &'a Catalog,
+    id: &str,
+    blake3: &str,
+    kind: AssetKind,
+) -> Result<(&'a Asset, PathBuf), SubjectError> {
+    let asset = catalog.get(id).ok_or_else(|| SubjectError::Asset {
+        asset: id.to_owned(),
+        reason: format!(
+            "not in the catalog at {}: the sample was expanded against another asset pack",
+            catalog.root.display()
+        ),
+    })?;
+    if asset.kind != kind {
+        return Err(SubjectError::Asset {
+            asset: id.to_owned(),
+            reason: format!("is a {}, the sample uses it as a {kind}", asset.kind),
+        });
+    }
+    if !asset.blake3.eq_ignore_ascii_case(blake3) {
+        return Err(SubjectError::Asset {
+            asset: id.to_owned(),
+            reason: format!(
+                "the sample pins blake3 {blake3} but the catalog has {}: re-expand the sample \
+                 against this catalog or install the asset pack it was made with",
+                asset.blake3
+            ),
+        });
+    }
+    Ok((asset, catalog.path_of(asset)))
+}
+
+/// Appends every mesh, material, texture and instance of `src`, instances moved by `transform`.
+pub fn append_scene(dst: &mut Scene, src: &Scene, transform: Mat4) {
+    let material_base = dst.materials.len() as u32;
+    let texture_base = dst.textures.len() as u32;
+    let mesh_base = dst.meshes.len() as u32;
+    dst.textures.extend(src.textures.iter().cloned());
+    dst.materials.extend(src.materials.iter().map(|m| {
+        let mut m = m.clone();
+        for t in [
+            &mut m.base_color_texture,
+            &mut m.metallic_roughness_texture,
+            &mut m.normal_texture,
+        ] {
+            if let Some(t) = t {
+                *t += texture_base;
+            }
+        }
+        m
+    }));
+    dst.meshes.extend(src.meshes.iter().map(|mesh| {
+        let mut mesh = mesh.clone();
+        for m in mesh.triangle_materials.iter_mut() {
+            *m += material_base;
+        }
+        mesh
+    }));
+    dst.instances
+        .extend(src.instances.iter().map(|i| lightfarm_render::scene::Instance {
+            mesh: i.mesh + mesh_base,
+            transform: transform * i.transform,
+        }));
+}
+
+/// The camera of a sample: on a sphere of `radius_m` about the world origin at the sampled
+/// yaw (0 = in front of the face, +Z) and pitch (positive = above), looking at the origin.
+pub fn sample_camera(sample: &SampleSpec) -> Result<Camera, SubjectError> {
+    let c = &sample.camera;
+    let rotation = Quat::from_rotation_y((c.yaw_deg as f32).to_radians())
+        * Quat::from_rotation_x(-(c.pitch_deg as f32).to_radians());
+    let position = rotation * Vec3::new(0.0, 0.0, c.radius_m as f32);
+    Ok(Camera::look_at(position, Vec3::ZERO, c.fov_deg as f32)?)
+}
+
+/// Where the head's frame goes in the world: the aim point moved to the sampled offset.
+pub fn subject_transform(lm: &Landmarks, offset_m: [f64; 3]) -> Mat4 {
+    let eyes = lm.eye_centre();
+    let aim = Vec3::new(
+        eyes.x,
+        eyes.y - AIM_BELOW_EYES_M,
+        eyes.z - AIM_BEHIND_EYES_M,
+    );
+    Mat4::from_translation(Vec3::from_array(offset_m.map(|v| v as f32)) - aim)
+}
+
+fn load_scene(path: &std::path::Path, asset: &Asset) -> Result<Scene, SubjectError> {
+    Scene::load_gltf(path).map_err(|e| SubjectError::Asset {
+        asset: asset.id.clone(),
+        reason: e.to_string(),
+    })
+}
+
+/// World-space (head-frame) triangles of every instance of `scene` under `transform`.
+fn triangles_of(scene: &Scene, transform: Mat4) -> Vec<[Vec3; 3]> {
+    let mut out = Vec::new();
+    for inst in &scene.instances {
+        let Some(mesh) = scene.meshes.get(inst.mesh as usize) else {
+            continue;
+        };
+        let m = transform * inst.transform;
+        for tri in mesh.indices.chunks_exact(3) {
+            let p = |k: usize| {
+                mesh.positions
+                    .get(tri[k] as usize)
+                    .map(|p| m.transform_point3(Vec3::from(*p)))
+            };
+            if let (Some(a), Some(b), Some(c)) = (p(0), p(1), p(2)) {
+                out.push([a, b, c]);
+            }
+        }
+    }
+    out
+}
+
+/// Removes the head's skin triangles the garment covers; returns how many.
+fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> usize {
+    let mut removed = 0;
+    let skin: Vec<bool> = head
+        .scene
+        .materials
+        .iter()
+        .map(|m| m.name.to_ascii_lowercase().contains("skin"))
+        .collect();
+    // Each head mesh is instanced once; editing it in place is then the same as editing
+    // the instance.
+    let instances: Vec<(u32, Mat4)> = head
+        .scene
+        .instances
+        .iter()
+        .map(|i| (i.mesh, i.transform))
+        .collect();
+    for (mesh_index, transform) in instances {
+        let Some(mesh) = head.scene.meshes.get_mut(mesh_index as usize) else {
+            continue;
+        };
+        let world: Vec<Vec3> = mesh
+            .positions
+            .iter()
+            .map(|p| transform.transform_point3(Vec3::from(*p)))
+            .collect();
+        let covered: Vec<bool> = world
+            .iter()
+            .map(|p| p.y < collar_y - 0.005 && cover.covers(*p, 0.03))
+            .collect();
+        let mut indices = Vec::with_capacity(mesh.indices.len());
+        let mut materials = Vec::with_capacity(mesh.triangle_materials.len());
+        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+            let material = mesh.triangle_materials.get(t).copied().unwrap_or(0);
+            let is_skin = skin.get(material as usize).copied().unwrap_or(false);
+            let hidden = is_skin
+                && tri
+                    .iter()
+                    .all(|&v| covered.get(v as usize).copied().unwrap_or(false));
+            if hidden {
+                removed += 1;
+            } else {
+                indices.extend_from_slice(tri);
+                materials.push(material);
+            }
+        }
+        mesh.indices = indices;
+        mesh.triangle_materials = materials;
+    }
+    removed
+}
+
+fn strand_material(name: &str, albedo: [f32; 3], roughness: f32) -> Material {
+    Material {
+        name: name.to_owned(),
+        base_color: [albedo[0], albedo[1], albedo[2], 1.0],
+        metallic: 0.0,
+        roughness,
+        // Keratin's index of refraction is 1.55: a dielectric specular layer, as on a fibre.
+        specular: 1.0,
+        ior: 1.55,
+        double_sided: true,
+        ..Material::default()
+    }
+}
+
+/// Builds sample `sample`'s scene from the assets of `catalog`.
+pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, SubjectError> {
+    let (head_asset, head_path) = resolve(
+        catalog,
+        &sample.head.id,
+        &sample.head.blake3,
+        AssetKind::Head,
+    )?;
+    let mut head = Head::load(head_asset, &head_path, &sample.head.expression.weights)?;
+    let lm = head.landmarks;
+    let to_world = subject_transform(&lm, sample.camera.subject_offset_m);
+    let camera = sample_camera(sample)?;
+    // Hair ribbons face the camera; they are built in the head frame.
+    let eye_in_head = to_world.inverse().transform_point3(camera.position);
+
+    let mut stats = AssemblyStats::default();
+    let mut parts = Scene::default();
+
+    if let Some(g) = &sample.garment {
+        let (asset, path) = resolve(catalog, &g.id, &g.blake3, AssetKind::Garment)?;
+        let mut garment = load_scene(&path, asset)?;
+        let (fitted, fitted_eyes) = garment_fitted_body(catalog, asset)?;
+        let fit = match Body::measure(&head.surface, &lm) {
+            Some(target) => GarmentFit::new(&fitted, &target),
+            // ICT FaceKit meshes stop at the throat: no neck to measure.
+            None => GarmentFit::by_eyes(&fitted, fitted_eyes, lm.eye_centre()),
+        };
+        for m in garment.materials.iter_mut() {
+            let [r, g_, b] = g.color_rgb.map(|v| v as f32);
+            m.base_color = [r, g_, b, 1.0];
+            m.base_color_texture = None;
+            m.metallic = 0.0;
+            m.roughness = g.roughness as f32;
+            // Cloth has a weak, rough sheen-like reflection rather than a plastic highlight.
+            m.specular = 0.5;
+            m.double_sided = true;
+        }
+        fit.warp_scene(&mut garment);
+        let tris = triangles_of(&garment, Mat4::IDENTITY);
+        let collar_y = tris
+            .iter()
+            .flatten()
+            .map(|p| p.y)
+            .fold(f32::NEG_INFINITY, f32::max);
+        let cover = CoverMap::new(fit.body_axis(), &tris);
+        stats.hidden_skin_triangles = hide_covered_skin(&mut head, &cover, collar_y);
+        append_scene(&mut parts, &garment, Mat4::IDENTITY);
+    }
+
+    let strands = grow_hair(&head.surface, &lm, &sample.hair, sample.hair.seed).map_err(|reason| {
+        SubjectError::Asset {
+            asset: format!("hair ({} on {})", sample.hair.style, head.id),
+            reason,
+        }
+    })?;
+    let brows = grow_eyebrows(&head.surface, &lm, sample.hair.seed ^ 0x9E37_79B9_7F4A_7C15);
+    stats.hair_strands = strands.strand_count();
+    stats.eyebrow_strands = brows.strand_count();
+    let albedo = hair_albedo(sample.hair.melanin, sample.hair.melanin_redness);
+    add_strands(&mut parts, &strands, eye_in_head, "hair", albedo);
+    add_strands(&mut parts, &brows, eye_in_head, "eyebrows", albedo);
+
+    if let Some(g) = &sample.glasses {
+        let (asset, path) = resolve(catalog, &g.id, &g.blake3, AssetKind::Glasses)?;
+        let glasses = load_scene(&path, asset)?;
+        let placed = place_glasses(&glasses, &lm, &head.surface)?;
+        append_scene(&mut parts, &placed, Mat4::IDENTITY);
+    }
+    if let Some(h) = &sample.headset {
+        let (asset, path) = resolve(catalog, &h.id, &h.blake3, AssetKind::Headset)?;
+        let headset = load_scene(&path, asset)?;
+        let fit = fit_headset(&headset, &lm).map_err(|reason| SubjectError::Asset {
+            asset: asset.id.clone(),
+            reason,
+        })?;
+        append_scene(&mut parts, &headset, fit);
+    }
+
+    let mut scene = Scene::default();
+    append_scene(&mut scene, &head.scene, to_world);
+    append_scene(&mut scene, &parts, to_world);
+    stats.triangles = scene.triangle_count();
+
+    let lighting = sample
+        .lighting
+        .iter()
+        .map(|l| {
+            let (_, path) = resolve(catalog, &l.hdri, &l.blake3, AssetKind::Hdri)?;
+            Ok((path, l.rotation_deg as f32, l.flip))
+        })
+        .collect::<Result<Vec<_>, SubjectError>>()?;
+    Ok(Assembled {
+        scene,
+        camera,
+        lighting,
+        width: sample.render.width,
+        height: sample.render.height,
+        spp: sample.render.spp,
+        seed: sample.render.seed,
+        stats,
+    })
+}
+
+fn add_strands(scene: &mut Scene, strands: &Strands, eye: Vec3, name: &str, albedo: [f32; 3]) {
+    if strands.strand_count() == 0 {
+        return;
+    }
+    let mesh = strands.ribbon_mesh(eye, name);
+    scene.add_mesh_instance(mesh, strand_material(name, albedo, 0.35), Mat4::IDENTITY);
+}
+
+/// The body a garment was fitted to (catalog tag `fitted_to`, a head id), and its eye centre.
+fn garment_fitted_body(catalog: &Catalog, garment: &Asset) -> Result<(Body, Vec3), SubjectError> {
+    let err = |reason: String| SubjectError::Asset {
+        asset: garment.id.clone(),
+        reason,
+    };
+    let body = garment.tags.get("fitted_to").ok_or_else(|| {
+        err("has no `fitted_to` tag naming the head whose body it was fitted to".into())
+    })?;
+    let head_asset = catalog
+        .get(body)
+        .filter(|a| a.kind == AssetKind::Head)
+        .ok_or_else(|| err(format!("tag fitted_to = {body:?} is not a head in the catalog")))?;
+    let head = Head::load(head_asset, &catalog.path_of(head_asset), &BTreeMap::new())?;
+    let measured = Body::measure(&head.surface, &head.landmarks)
+        .ok_or_else(|| err(format!("its body {body} has no neck 1.5-8 cm below the chin")))?;
+    Ok((measured, head.landmarks.eye_centre()))
+}

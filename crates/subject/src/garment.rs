@@ -1,0 +1,270 @@
+//! Putting a fitted garment on a head it was not fitted to, and hiding the body under it.
+//!
+//! The MakeHuman garments were fitted to one body each (catalog tag `fitted_to`). Other heads
+//! have their necks elsewhere, so the garment is moved by the difference of the two necks'
+//! centres and scaled by the ratio of their widths. Skin the garment covers is then removed
+//! rather than pushed in: body meshes poke through cloth at the shoulders otherwise, and the
+//! covered skin is never seen (a cloth pipeline deletes hidden body parts the same way).
+
+use glam::{Mat4, Vec3};
+
+use crate::landmarks::{HeadSurface, Landmarks};
+
+/// The neck where a collar sits: `centre` is on the back of the neck, on the midline, 2 cm
+/// above the shoulder line (chin and jaw make the front useless as a reference: on some heads
+/// they reach down to the collar).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Neck {
+    pub centre: Vec3,
+    pub half_width: f32,
+}
+
+impl Neck {
+    /// A point inside the neck, for axes that must run through the body.
+    pub fn inside(&self) -> Vec3 {
+        self.centre + Vec3::new(0.0, 0.0, self.half_width)
+    }
+}
+
+/// Where the shoulders are searched, below the eye line.
+const SHOULDER_SEARCH_M: [f32; 2] = [0.06, 0.25];
+/// The shoulder line is where the body first gets wider than this (half-width) going down:
+/// wider than any neck, narrower than any pair of shoulders.
+const SHOULDER_START_HALF_WIDTH_M: f32 = 0.09;
+/// The collar reference is this far above the shoulder line.
+const NECK_ABOVE_SHOULDERS_M: f32 = 0.02;
+/// Shoulders are measured this far below the shoulder line.
+const SHOULDER_BELOW_LINE_M: f32 = 0.05;
+
+/// Extent of the skin in a 1 cm slab at height `y`: (min, max, count).
+fn slab(surface: &HeadSurface, y: f32) -> (Vec3, Vec3, usize) {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    let mut n = 0;
+    for p in surface.positions.iter().filter(|p| (p.y - y).abs() < 0.005) {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+        n += 1;
+    }
+    (lo, hi, n)
+}
+
+/// The height where the neck meets the shoulders, `None` when the mesh stops above them.
+pub fn shoulder_line(surface: &HeadSurface, lm: &Landmarks) -> Option<f32> {
+    let eye_y = lm.eye_centre().y;
+    let steps = ((SHOULDER_SEARCH_M[1] - SHOULDER_SEARCH_M[0]) / 0.005) as usize;
+    (0..=steps)
+        .map(|k| eye_y - SHOULDER_SEARCH_M[0] - k as f32 * 0.005)
+        .find(|&y| {
+            let (lo, hi, n) = slab(surface, y);
+            n >= 8 && (hi.x - lo.x) * 0.5 > SHOULDER_START_HALF_WIDTH_M
+        })
+}
+
+/// The neck 2 cm above the shoulder line; `None` when there is no shoulder line.
+pub fn measure_neck(surface: &HeadSurface, lm: &Landmarks) -> Option<Neck> {
+    let y = shoulder_line(surface, lm)? + NECK_ABOVE_SHOULDERS_M;
+    let (lo, hi, n) = slab(surface, y);
+    (n >= 8).then(|| Neck {
+        centre: Vec3::new((lo.x + hi.x) * 0.5, y, lo.z),
+        half_width: (hi.x - lo.x) * 0.5,
+    })
+}
+
+/// Half-width of the skin `SHOULDER_BELOW_LINE_M` under the shoulder line, `None` without
+/// skin there.
+pub fn measure_shoulders(surface: &HeadSurface, neck: &Neck) -> Option<f32> {
+    let y = neck.centre.y - NECK_ABOVE_SHOULDERS_M - SHOULDER_BELOW_LINE_M;
+    let xs: Vec<f32> = surface
+        .positions
+        .iter()
+        .filter(|p| (p.y - y).abs() < 0.005)
+        .map(|p| (p.x - neck.centre.x).abs())
+        .collect();
+    (xs.len() >= 8).then(|| xs.into_iter().fold(0.0, f32::max))
+}
+
+/// A body's fit measurements: neck and shoulder half-width.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Body {
+    pub neck: Neck,
+    /// `None` when the mesh ends above the shoulders; the neck's scale is used then.
+    pub shoulder_half_width: Option<f32>,
+}
+
+impl Body {
+    pub fn measure(surface: &HeadSurface, lm: &Landmarks) -> Option<Body> {
+        let neck = measure_neck(surface, lm)?;
+        Some(Body {
+            neck,
+            shoulder_half_width: measure_shoulders(surface, &neck),
+        })
+    }
+}
+
+/// Garment (fitted to body `fitted`) → body `target`: a warp that moves the neck centres
+/// together and scales horizontally by the neck-width ratio at the collar, blending to the
+/// shoulder-width ratio 7 cm below it (a bulky neck on narrow
+/// shoulders needs a wider collar, not a wider coat).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GarmentFit {
+    from: Vec3,
+    to: Vec3,
+    axis: Vec3,
+    neck_scale: f32,
+    shoulder_scale: f32,
+}
+
+impl GarmentFit {
+    pub fn new(fitted: &Body, target: &Body) -> GarmentFit {
+        let ratio = |a: f32, b: f32| if a > 1e-4 { b / a } else { 1.0 };
+        let neck_scale = ratio(fitted.neck.half_width, target.neck.half_width).clamp(0.8, 1.6);
+        let shoulder_scale = match (fitted.shoulder_half_width, target.shoulder_half_width) {
+            (Some(a), Some(b)) => ratio(a, b).clamp(0.8, 1.3),
+            _ => neck_scale.min(1.3),
+        };
+        GarmentFit {
+            from: fitted.neck.centre,
+            to: target.neck.centre,
+            axis: target.neck.inside(),
+            neck_scale,
+            shoulder_scale,
+        }
+    }
+
+    /// For a body whose neck could not be measured: the garment goes where it sits on the body
+    /// it was made for relative to the eyes, unscaled.
+    pub fn by_eyes(fitted: &Body, fitted_eyes: Vec3, target_eyes: Vec3) -> GarmentFit {
+        GarmentFit {
+            from: fitted.neck.centre,
+            to: fitted.neck.centre - fitted_eyes + target_eyes,
+            axis: fitted.neck.inside() - fitted_eyes + target_eyes,
+            neck_scale: 1.0,
+            shoulder_scale: 1.0,
+        }
+    }
+
+    /// A vertical axis through the target's neck (for [`CoverMap`]).
+    pub fn body_axis(&self) -> Vec3 {
+        self.axis
+    }
+
+    /// Horizontal scale at height `y` (garment space).
+    pub fn scale_at(&self, y: f32) -> f32 {
+        let t = ((self.from.y - y) / (NECK_ABOVE_SHOULDERS_M + SHOULDER_BELOW_LINE_M)).clamp(0.0, 1.0);
+        self.neck_scale + (self.shoulder_scale - self.neck_scale) * t
+    }
+
+    pub fn apply(&self, p: Vec3) -> Vec3 {
+        let s = self.scale_at(p.y);
+        let d = p - self.from;
+        self.to + Vec3::new(d.x * s, d.y, d.z * s)
+    }
+
+    /// Warps every instance of `scene` in place (positions baked into world space, instance
+    /// transforms set to identity, normals recomputed).
+    pub fn warp_scene(&self, scene: &mut lightfarm_render::scene::Scene) {
+        let instances = std::mem::take(&mut scene.instances);
+        let mut meshes = Vec::with_capacity(instances.len());
+        for inst in &instances {
+            let Some(mesh) = scene.meshes.get(inst.mesh as usize) else {
+                continue;
+            };
+            let mut mesh = mesh.clone();
+            for p in mesh.positions.iter_mut() {
+                *p = self.apply(inst.transform.transform_point3(Vec3::from(*p))).to_array();
+            }
+            mesh.morph_targets.clear();
+            mesh.recompute_normals();
+            meshes.push(mesh);
+        }
+        scene.instances = (0..meshes.len() as u32)
+            .map(|mesh| lightfarm_render::scene::Instance {
+                mesh,
+                transform: Mat4::IDENTITY,
+            })
+            .collect();
+        scene.meshes = meshes;
+    }
+}
+
+/// Where a garment is, as seen from the body axis: for each (angle, height) bin the garment
+/// covers, the largest radius of cloth there.
+pub struct CoverMap {
+    axis: Vec3,
+    y0: f32,
+    radius: Vec<f32>,
+}
+
+const ANGLE_BINS: usize = 72;
+const HEIGHT_BIN_M: f32 = 0.01;
+
+impl CoverMap {
+    /// Rasterises the garment's triangles (world space) around a vertical axis through `axis`.
+    pub fn new(axis: Vec3, triangles: &[[Vec3; 3]]) -> CoverMap {
+        let y0 = triangles
+            .iter()
+            .flatten()
+            .map(|p| p.y)
+            .fold(f32::INFINITY, f32::min);
+        let y1 = triangles
+            .iter()
+            .flatten()
+            .map(|p| p.y)
+            .fold(f32::NEG_INFINITY, f32::max);
+        let rows = if y1 >= y0 {
+            ((y1 - y0) / HEIGHT_BIN_M) as usize + 1
+        } else {
+            0
+        };
+        let mut map = CoverMap {
+            axis,
+            y0,
+            radius: vec![0.0; rows * ANGLE_BINS],
+        };
+        for t in triangles {
+            // Enough samples that no bin inside a triangle is skipped: spacing ≤ half a bin.
+            let extent = (t[1] - t[0]).length().max((t[2] - t[0]).length());
+            let n = ((extent / (HEIGHT_BIN_M * 0.5)).ceil() as usize).clamp(1, 64);
+            for i in 0..=n {
+                for j in 0..=(n - i) {
+                    let (a, b) = (i as f32 / n as f32, j as f32 / n as f32);
+                    let p = t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b;
+                    if let Some(k) = map.bin(p) {
+                        let r = map.radial(p);
+                        if r > map.radius[k] {
+                            map.radius[k] = r;
+                        }
+                    }
+                }
+            }
+        }
+        map
+    }
+
+    fn radial(&self, p: Vec3) -> f32 {
+        let d = p - self.axis;
+        (d.x * d.x + d.z * d.z).sqrt()
+    }
+
+    fn bin(&self, p: Vec3) -> Option<usize> {
+        let row = ((p.y - self.y0) / HEIGHT_BIN_M).floor();
+        if !(row >= 0.0) {
+            return None;
+        }
+        let row = row as usize;
+        let d = p - self.axis;
+        let angle = d.z.atan2(d.x) + std::f32::consts::PI;
+        let col = ((angle / std::f32::consts::TAU) * ANGLE_BINS as f32) as usize % ANGLE_BINS;
+        let k = row * ANGLE_BINS + col;
+        (k < self.radius.len()).then_some(k)
+    }
+
+    /// Whether cloth lies at `p`'s angle and height at least as far out as `p` minus `slack`
+    /// (so skin just outside a tight garment, which would poke through, counts as covered).
+    pub fn covers(&self, p: Vec3, slack: f32) -> bool {
+        self.bin(p)
+            .and_then(|k| self.radius.get(k))
+            .is_some_and(|&r| r > 0.0 && r + slack >= self.radial(p))
+    }
+}

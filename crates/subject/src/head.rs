@@ -1,0 +1,250 @@
+//! A head asset in the canonical frame: its scene, skin surface and landmarks.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+use lightfarm_render::scene::Scene;
+use lightfarm_scene::catalog::Asset;
+
+use crate::landmarks::{HeadSurface, Landmarks};
+use crate::SubjectError;
+
+/// Material names (lower-cased substrings) that mark skin: hair roots go there and strands
+/// must stay outside it.
+const SKIN_NAMES: [&str; 1] = ["skin"];
+
+/// Material names of eyeballs, in order of preference: the sclera/eyeball mesh gives the
+/// eyeball centre; a cornea bulges forward, so it is used only when nothing else is there.
+const EYE_NAMES: [&[&str]; 2] = [&["sclera", "eyes", "eyeball"], &["cornea", "iris"]];
+
+/// A loaded head, every mesh already moved into the canonical frame.
+#[derive(Clone, Debug)]
+pub struct Head {
+    pub id: String,
+    pub scene: Scene,
+    pub surface: HeadSurface,
+    pub landmarks: Landmarks,
+}
+
+fn asset_error(asset: &Asset, reason: impl Into<String>) -> SubjectError {
+    SubjectError::Asset {
+        asset: asset.id.clone(),
+        reason: reason.into(),
+    }
+}
+
+fn material_matches(scene: &Scene, material: u32, names: &[&str]) -> bool {
+    scene
+        .materials
+        .get(material as usize)
+        .map(|m| m.name.to_ascii_lowercase())
+        .is_some_and(|n| names.iter().any(|k| n.contains(k)) && !n.contains("lash"))
+}
+
+impl Head {
+    /// Loads `asset` (a head file at `path`), applies the expression's morph weights (unknown
+    /// morph names are an error naming them), and moves it into the canonical frame.
+    pub fn load(
+        asset: &Asset,
+        path: &Path,
+        expression: &BTreeMap<String, f64>,
+    ) -> Result<Head, SubjectError> {
+        let mut scene = Scene::load_gltf(path)?;
+        if scene.instances.is_empty() {
+            return Err(asset_error(asset, "the file has no mesh instances"));
+        }
+        if !expression.is_empty() {
+            let available: usize = scene.meshes.iter().map(|m| m.morph_targets.len()).sum();
+            if available == 0 {
+                return Err(asset_error(
+                    asset,
+                    format!(
+                        "the sample asks for expression weights {:?} but the head has no morph \
+                         targets: select heads with tag morphs=arkit52 or set \
+                         subject.expression_probability = 0",
+                        expression.keys().collect::<Vec<_>>()
+                    ),
+                ));
+            }
+            for mesh in scene.meshes.iter_mut() {
+                if !mesh.morph_targets.is_empty() {
+                    mesh.apply_morphs(expression)
+                        .map_err(|e| asset_error(asset, e.to_string()))?;
+                }
+            }
+        }
+        if let Some(frame) = &asset.frame {
+            let to_canonical = Mat4::from_translation(Vec3::from_array(
+                frame.translate.map(|v| v as f32),
+            )) * Mat4::from_scale(Vec3::splat(frame.scale as f32));
+            for inst in scene.instances.iter_mut() {
+                inst.transform = to_canonical * inst.transform;
+            }
+        }
+        let surface = skin_surface(&scene);
+        if surface.triangles.is_empty() {
+            return Err(asset_error(
+                asset,
+                "no triangles with a skin material (a material name containing \"skin\")",
+            ));
+        }
+        let landmarks = match &asset.landmarks {
+            Some(table) => landmarks_from_table(asset, table)?,
+            None => detect_landmarks(&scene, &surface).map_err(|r| asset_error(asset, r))?,
+        };
+        Ok(Head {
+            id: asset.id.clone(),
+            scene,
+            surface,
+            landmarks,
+        })
+    }
+}
+
+/// World-space (canonical) skin triangles of every instance, vertices shared per mesh.
+pub fn skin_surface(scene: &Scene) -> HeadSurface {
+    let mut surface = HeadSurface::default();
+    for inst in &scene.instances {
+        let Some(mesh) = scene.meshes.get(inst.mesh as usize) else {
+            continue;
+        };
+        let normal_matrix = inst.transform.inverse().transpose();
+        let mut remap = vec![u32::MAX; mesh.positions.len()];
+        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+            let material = mesh.triangle_materials.get(t).copied().unwrap_or(u32::MAX);
+            if !material_matches(scene, material, &SKIN_NAMES) {
+                continue;
+            }
+            let mut out = [0u32; 3];
+            for (k, &v) in tri.iter().enumerate() {
+                let v = v as usize;
+                if v >= mesh.positions.len() {
+                    continue;
+                }
+                if remap[v] == u32::MAX {
+                    remap[v] = surface.positions.len() as u32;
+                    let p = inst
+                        .transform
+                        .transform_point3(Vec3::from(mesh.positions[v]));
+                    let n = mesh.normals.get(v).copied().unwrap_or([0.0, 1.0, 0.0]);
+                    let n = normal_matrix
+                        .transform_vector3(Vec3::from(n))
+                        .normalize_or(Vec3::Y);
+                    surface.positions.push(p);
+                    surface.normals.push(n);
+                }
+                out[k] = remap[v];
+            }
+            surface.triangles.push(out);
+        }
+    }
+    surface
+}
+
+fn landmarks_from_table(
+    asset: &Asset,
+    table: &BTreeMap<String, [f64; 3]>,
+) -> Result<Landmarks, SubjectError> {
+    let get = |name: &str| {
+        table
+            .get(name)
+            .map(|v| Vec3::from_array(v.map(|c| c as f32)))
+            .ok_or_else(|| asset_error(asset, format!("landmarks.{name} is missing")))
+    };
+    Ok(Landmarks {
+        eye_left: get("eye_left")?,
+        eye_right: get("eye_right")?,
+        ear_left: get("ear_left")?,
+        ear_right: get("ear_right")?,
+        nose_bridge: get("nose_bridge")?,
+        crown: get("crown")?,
+    })
+}
+
+/// Landmarks of a head with eye meshes: eyeball centres from the eye geometry, the rest from
+/// the skin relative to them (see [`Landmarks`] for the definitions).
+pub fn detect_landmarks(scene: &Scene, skin: &HeadSurface) -> Result<Landmarks, String> {
+    let mut eyes: Vec<Vec3> = Vec::new();
+    for names in EYE_NAMES {
+        for inst in &scene.instances {
+            let Some(mesh) = scene.meshes.get(inst.mesh as usize) else {
+                continue;
+            };
+            for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+                let material = mesh.triangle_materials.get(t).copied().unwrap_or(u32::MAX);
+                if !material_matches(scene, material, names) {
+                    continue;
+                }
+                eyes.extend(tri.iter().filter_map(|&v| {
+                    mesh.positions
+                        .get(v as usize)
+                        .map(|p| inst.transform.transform_point3(Vec3::from(*p)))
+                }));
+            }
+        }
+        if !eyes.is_empty() {
+            break;
+        }
+    }
+    let centre = |side: f32| -> Option<Vec3> {
+        let (lo, hi) = eyes
+            .iter()
+            .filter(|p| p.x * side > 0.0)
+            .fold(None, |acc: Option<(Vec3, Vec3)>, p| match acc {
+                None => Some((*p, *p)),
+                Some((lo, hi)) => Some((lo.min(*p), hi.max(*p))),
+            })?;
+        Some((lo + hi) * 0.5)
+    };
+    let (Some(eye_left), Some(eye_right)) = (centre(1.0), centre(-1.0)) else {
+        return Err("no eye meshes on both sides (materials named sclera/eyes/eyeball/cornea/iris): \
+                    give the head a `landmarks` table in the catalog"
+            .into());
+    };
+    let eye_y = (eye_left.y + eye_right.y) * 0.5;
+    let eye_z = (eye_left.z + eye_right.z) * 0.5;
+    let pts = &skin.positions;
+
+    // The ear attachment lies 5.5-13.5 cm behind the eyeball centres on every head here; the
+    // widest skin point at eye height within that slab is where a temple arm rests.
+    let in_ear_band = |p: &&Vec3| (p.y - eye_y).abs() < 0.03 && p.z < eye_z - 0.055 && p.z > eye_z - 0.135;
+    let ear_left = pts
+        .iter()
+        .filter(in_ear_band)
+        .max_by(|a, b| a.x.total_cmp(&b.x))
+        .copied();
+    let ear_right = pts
+        .iter()
+        .filter(in_ear_band)
+        .min_by(|a, b| a.x.total_cmp(&b.x))
+        .copied();
+    let (Some(ear_left), Some(ear_right)) = (ear_left, ear_right) else {
+        return Err("no skin at eye height 5.5-13.5 cm behind the eyes to find the ears".into());
+    };
+    let mut nose_bridge = None;
+    for half_width in [0.006, 0.012, 0.02] {
+        nose_bridge = pts
+            .iter()
+            .filter(|p| p.x.abs() < half_width && (p.y - eye_y).abs() < 0.01)
+            .max_by(|a, b| a.z.total_cmp(&b.z))
+            .copied();
+        if nose_bridge.is_some() {
+            break;
+        }
+    }
+    let Some(nose_bridge) = nose_bridge else {
+        return Err("no skin on the midline at eye height to find the nose bridge".into());
+    };
+    let Some(crown) = pts.iter().max_by(|a, b| a.y.total_cmp(&b.y)).copied() else {
+        return Err("the skin has no vertices".into());
+    };
+    Ok(Landmarks {
+        eye_left,
+        eye_right,
+        ear_left,
+        ear_right,
+        nose_bridge,
+        crown,
+    })
+}

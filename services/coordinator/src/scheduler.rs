@@ -1,0 +1,840 @@
+//! Jobs, tasks, leases and workers: the coordinator's state machine.
+//!
+//! Everything lives in memory behind one lock (a lease or a commit is a few map operations)
+//! and is written through to sled, so a restart rebuilds exactly what was there: jobs, live
+//! leases with their deadlines, failures, blocklists. Committed samples are the store's
+//! [`SampleIndex`], which is the only authority on "done": a task whose sample is committed
+//! is done whatever else the task records say.
+//!
+//! Semantics (../../shared/DESIGN.md, "Coordinator semantics"):
+//! - pull leasing with a deadline; heartbeats extend it; an expired lease requeues the task;
+//! - fencing: only the current lease holder completes or fails a task; a commit arriving after
+//!   the lease expired is still accepted while no other worker holds the task (the bytes are a
+//!   pure function of the sample, so they are the bytes anyone would upload);
+//! - a failure requeues the task for a *different* worker; after failures on 3 distinct workers
+//!   the task is failed with every reason kept; a worker failing twice in a job is blocklisted
+//!   for that job;
+//! - locality: a worker gets tasks whose head it already holds first.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};
+use std::sync::Mutex;
+
+use lightfarm_scene::catalog::Catalog;
+use lightfarm_scene::expand::{expand, expand_json, required_assets};
+use lightfarm_scene::spec::{DatasetSpec, ResolvedSpec};
+use lightfarm_store::SampleIndex;
+use serde::{Deserialize, Serialize};
+
+use crate::error::CoordError;
+
+/// Distinct workers a task may fail on before it is failed for good.
+pub const MAX_FAILED_WORKERS: usize = 3;
+/// Failures of one worker within one job after which it gets no more of that job's tasks.
+pub const BLOCKLIST_AFTER: u32 = 2;
+/// Window of the samples-per-second estimate.
+const RATE_WINDOW_S: f64 = 60.0;
+/// Failures reported per job in `Job.failures`.
+const RECENT_FAILURES: usize = 20;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum RunState {
+    Running,
+    Paused,
+    Cancelled,
+}
+
+/// What a job is, as persisted.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JobRecord {
+    pub id: String,
+    pub name: String,
+    pub priority: i32,
+    pub count: u64,
+    pub spec_toml: String,
+    pub created_unix: f64,
+    pub run: RunState,
+    /// Submission order: among equal priorities, older jobs lease first.
+    pub seq: u64,
+    #[serde(default)]
+    pub blocklist: BTreeSet<String>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Lease {
+    pub id: String,
+    pub worker: String,
+    pub deadline_unix: f64,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Failure {
+    pub worker: String,
+    pub reason: String,
+    pub at_unix: f64,
+}
+
+/// Persisted per task once anything happened to it (a fresh task has no record).
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+struct TaskRecord {
+    attempt: u32,
+    lease: Option<Lease>,
+    failures: Vec<Failure>,
+    failed: bool,
+}
+
+/// A task handed to a worker.
+#[derive(Clone, Debug)]
+pub struct LeasedTask {
+    pub job_id: String,
+    pub index: u64,
+    pub lease_id: String,
+    pub deadline_unix: f64,
+    pub sample_json: String,
+    /// (id, blake3) of every asset the sample reads.
+    pub assets: Vec<(String, String)>,
+}
+
+/// Counts and rates of one job.
+#[derive(Clone, Debug, PartialEq)]
+pub struct JobStatus {
+    pub record: JobRecord,
+    pub queued: u64,
+    pub leased: u64,
+    pub done: u64,
+    pub failed: u64,
+    pub samples_per_second: f64,
+    pub eta_seconds: f64,
+    /// (index, failure), newest last.
+    pub recent_failures: Vec<(u64, Failure)>,
+}
+
+impl JobStatus {
+    pub fn finished(&self) -> bool {
+        self.record.run == RunState::Cancelled || self.done + self.failed >= self.record.count
+    }
+}
+
+/// What an upload may do, decided before its bytes are read.
+#[derive(Clone, Debug, PartialEq)]
+pub enum UploadCheck {
+    /// Go ahead: read, verify and commit.
+    Accept { split: String, sample_json: String },
+    /// Committed already: acknowledge without storing.
+    AlreadyCommitted,
+}
+
+struct JobRt {
+    rec: JobRecord,
+    spec: ResolvedSpec,
+    /// Queued indices, and the same indices grouped by head asset (locality).
+    queued: BTreeSet<u64>,
+    by_head: HashMap<u32, BTreeSet<u64>>,
+    /// Head asset (index into `heads`) of every sample.
+    head_of: Vec<u32>,
+    heads: Vec<String>,
+    tasks: HashMap<u64, TaskRecord>,
+    leased: u64,
+    done: u64,
+    failed: u64,
+    worker_failures: HashMap<String, u32>,
+    commits: VecDeque<f64>,
+    recent: VecDeque<(u64, Failure)>,
+}
+
+impl JobRt {
+    fn dequeue(&mut self, index: u64) {
+        if self.queued.remove(&index) {
+            if let Some(h) = self.head_of.get(index as usize) {
+                if let Some(set) = self.by_head.get_mut(h) {
+                    set.remove(&index);
+                }
+            }
+        }
+    }
+
+    fn enqueue(&mut self, index: u64) {
+        if self.queued.insert(index) {
+            if let Some(h) = self.head_of.get(index as usize) {
+                self.by_head.entry(*h).or_default().insert(index);
+            }
+        }
+    }
+
+    fn status(&self, now: f64) -> JobStatus {
+        let recent: Vec<f64> = self
+            .commits
+            .iter()
+            .copied()
+            .filter(|t| now - t <= RATE_WINDOW_S)
+            .collect();
+        let rate = match (recent.first(), recent.len()) {
+            (Some(first), n) if n >= 2 => (n - 1) as f64 / (now - first).max(1e-3),
+            _ => 0.0,
+        };
+        let left = self.rec.count.saturating_sub(self.done + self.failed) as f64;
+        JobStatus {
+            record: self.rec.clone(),
+            queued: self.queued.len() as u64,
+            leased: self.leased,
+            done: self.done,
+            failed: self.failed,
+            samples_per_second: rate,
+            eta_seconds: if rate > 0.0 { left / rate } else { 0.0 },
+            recent_failures: self.recent.iter().cloned().collect(),
+        }
+    }
+}
+
+struct WorkerRt {
+    cached: HashSet<String>,
+}
+
+struct Inner {
+    jobs: BTreeMap<String, JobRt>,
+    /// lease id → (job, index)
+    leases: HashMap<String, (String, u64)>,
+    /// (deadline in ms, lease id), for expiry.
+    deadlines: BTreeSet<(u64, String)>,
+    workers: HashMap<String, WorkerRt>,
+    next_seq: u64,
+}
+
+/// The coordinator's scheduling state; see the module docs.
+pub struct Scheduler {
+    inner: Mutex<Inner>,
+    jobs_tree: sled::Tree,
+    tasks_tree: sled::Tree,
+    catalog: Catalog,
+    samples: SampleIndex,
+    lease_seconds: f64,
+    /// Bumped on every change a watcher may care about.
+    changed: tokio::sync::watch::Sender<u64>,
+}
+
+fn task_key(job: &str, index: u64) -> Vec<u8> {
+    let mut k = Vec::with_capacity(job.len() + 9);
+    k.extend_from_slice(job.as_bytes());
+    k.push(0);
+    k.extend_from_slice(&index.to_be_bytes());
+    k
+}
+
+fn ms(t: f64) -> u64 {
+    (t * 1000.0).max(0.0) as u64
+}
+
+fn sled_err(e: sled::Error) -> CoordError {
+    CoordError::Storage(e.to_string())
+}
+
+fn json_err(e: serde_json::Error) -> CoordError {
+    CoordError::Storage(format!("corrupt record: {e}"))
+}
+
+impl Scheduler {
+    /// Opens the state in `db`, rebuilding jobs, queues and live leases.
+    pub fn open(
+        db: &sled::Db,
+        catalog: Catalog,
+        samples: SampleIndex,
+        lease_seconds: f64,
+    ) -> Result<Scheduler, CoordError> {
+        let jobs_tree = db.open_tree("jobs").map_err(sled_err)?;
+        let tasks_tree = db.open_tree("tasks").map_err(sled_err)?;
+        let (changed, _) = tokio::sync::watch::channel(0);
+        let s = Scheduler {
+            inner: Mutex::new(Inner {
+                jobs: BTreeMap::new(),
+                leases: HashMap::new(),
+                deadlines: BTreeSet::new(),
+                workers: HashMap::new(),
+                next_seq: 0,
+            }),
+            jobs_tree,
+            tasks_tree,
+            catalog,
+            samples,
+            lease_seconds,
+            changed,
+        };
+        s.recover()?;
+        Ok(s)
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Inner> {
+        // A panic while holding the lock leaves state that is still consistent per operation
+        // (every mutation is a few map updates); keep serving rather than poisoning forever.
+        self.inner.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub fn catalog(&self) -> &Catalog {
+        &self.catalog
+    }
+
+    pub fn samples(&self) -> &SampleIndex {
+        &self.samples
+    }
+
+    pub fn lease_seconds(&self) -> f64 {
+        self.lease_seconds
+    }
+
+    /// A receiver that changes whenever any job's counts or state change.
+    pub fn subscribe(&self) -> tokio::sync::watch::Receiver<u64> {
+        self.changed.subscribe()
+    }
+
+    fn notify(&self) {
+        self.changed.send_modify(|v| *v = v.wrapping_add(1));
+    }
+
+    fn build_job(&self, rec: JobRecord) -> Result<JobRt, CoordError> {
+        let spec = DatasetSpec::from_toml_str(&rec.spec_toml, format!("job {}", rec.id))
+            .and_then(|s| s.validate(&self.catalog))
+            .map_err(|e| CoordError::BadSpec(e.to_string()))?;
+        let mut heads: Vec<String> = Vec::new();
+        let mut head_ids: HashMap<String, u32> = HashMap::new();
+        let mut head_of = Vec::with_capacity(rec.count as usize);
+        for index in 0..rec.count {
+            let sample = expand(&spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
+            let next = heads.len() as u32;
+            let h = *head_ids.entry(sample.head.blake3.clone()).or_insert(next);
+            if h == next {
+                heads.push(sample.head.blake3);
+            }
+            head_of.push(h);
+        }
+        Ok(JobRt {
+            rec,
+            spec,
+            queued: BTreeSet::new(),
+            by_head: HashMap::new(),
+            head_of,
+            heads,
+            tasks: HashMap::new(),
+            leased: 0,
+            done: 0,
+            failed: 0,
+            worker_failures: HashMap::new(),
+            commits: VecDeque::new(),
+            recent: VecDeque::new(),
+        })
+    }
+
+    fn recover(&self) -> Result<(), CoordError> {
+        let mut inner = self.lock();
+        for item in self.jobs_tree.iter() {
+            let (_, v) = item.map_err(sled_err)?;
+            let rec: JobRecord = serde_json::from_slice(&v).map_err(json_err)?;
+            inner.next_seq = inner.next_seq.max(rec.seq + 1);
+            let mut job = self.build_job(rec)?;
+            let id = job.rec.id.clone();
+            for item in self.tasks_tree.scan_prefix(task_key(&id, 0).split_at(id.len() + 1).0) {
+                let (k, v) = item.map_err(sled_err)?;
+                let Some(ix) = k.get(id.len() + 1..).and_then(|b| <[u8; 8]>::try_from(b).ok())
+                else {
+                    continue;
+                };
+                let task: TaskRecord = serde_json::from_slice(&v).map_err(json_err)?;
+                job.tasks.insert(u64::from_be_bytes(ix), task);
+            }
+            for index in 0..job.rec.count {
+                if self.samples.is_committed(&id, index).map_err(CoordError::from)? {
+                    job.done += 1;
+                    job.tasks.remove(&index);
+                    continue;
+                }
+                match job.tasks.get(&index) {
+                    Some(t) if t.failed => job.failed += 1,
+                    Some(Task { lease: Some(l), .. }) => {
+                        job.leased += 1;
+                        inner.leases.insert(l.id.clone(), (id.clone(), index));
+                        inner.deadlines.insert((ms(l.deadline_unix), l.id.clone()));
+                    }
+                    _ => job.enqueue(index),
+                }
+                if let Some(t) = job.tasks.get(&index) {
+                    for f in &t.failures {
+                        *job.worker_failures.entry(f.worker.clone()).or_default() += 1;
+                    }
+                }
+            }
+            tracing::info!(job = %id, queued = job.queued.len(), leased = job.leased, done = job.done, failed = job.failed, "recovered job");
+            inner.jobs.insert(id, job);
+        }
+        Ok(())
+    }
+
+    fn persist_job(&self, rec: &JobRecord) -> Result<(), CoordError> {
+        let v = serde_json::to_vec(rec).map_err(json_err)?;
+        self.jobs_tree
+            .insert(rec.id.as_bytes(), v)
+            .map_err(sled_err)?;
+        Ok(())
+    }
+
+    fn persist_task(&self, job: &str, index: u64, task: Option<&TaskRecord>) -> Result<(), CoordError> {
+        let key = task_key(job, index);
+        match task {
+            Some(t) => {
+                let v = serde_json::to_vec(t).map_err(json_err)?;
+                self.tasks_tree.insert(key, v).map_err(sled_err)?;
+            }
+            None => {
+                self.tasks_tree.remove(key).map_err(sled_err)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Validates `spec_toml` against the catalog and queues its samples.
+    pub fn submit(&self, spec_toml: &str, priority: i32, now: f64) -> Result<JobStatus, CoordError> {
+        let spec = DatasetSpec::from_toml_str(spec_toml, "submitted spec")
+            .and_then(|s| s.validate(&self.catalog))
+            .map_err(|e| CoordError::BadSpec(e.to_string()))?;
+        let mut inner = self.lock();
+        let seq = inner.next_seq;
+        inner.next_seq += 1;
+        let slug: String = spec
+            .name
+            .chars()
+            .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c.to_ascii_lowercase() } else { '-' })
+            .take(40)
+            .collect();
+        let rec = JobRecord {
+            id: format!("{slug}-{seq}"),
+            name: spec.name.clone(),
+            priority,
+            count: spec.count,
+            spec_toml: spec_toml.to_owned(),
+            created_unix: now,
+            run: RunState::Running,
+            seq,
+            blocklist: BTreeSet::new(),
+        };
+        let mut job = self.build_job(rec)?;
+        for index in 0..job.rec.count {
+            job.enqueue(index);
+        }
+        self.persist_job(&job.rec)?;
+        let status = job.status(now);
+        tracing::info!(job = %job.rec.id, count = job.rec.count, priority, "job submitted");
+        inner.jobs.insert(job.rec.id.clone(), job);
+        drop(inner);
+        self.notify();
+        Ok(status)
+    }
+
+    pub fn job(&self, job_id: &str, now: f64) -> Result<JobStatus, CoordError> {
+        let inner = self.lock();
+        inner
+            .jobs
+            .get(job_id)
+            .map(|j| j.status(now))
+            .ok_or_else(|| CoordError::UnknownJob(job_id.to_owned()))
+    }
+
+    pub fn jobs(&self, now: f64) -> Vec<JobStatus> {
+        let inner = self.lock();
+        let mut v: Vec<JobStatus> = inner.jobs.values().map(|j| j.status(now)).collect();
+        v.sort_by_key(|s| s.record.seq);
+        v
+    }
+
+    /// Pause, resume or cancel.
+    pub fn set_run_state(&self, job_id: &str, run: RunState, now: f64) -> Result<JobStatus, CoordError> {
+        let mut inner = self.lock();
+        let job = inner
+            .jobs
+            .get_mut(job_id)
+            .ok_or_else(|| CoordError::UnknownJob(job_id.to_owned()))?;
+        if job.rec.run == RunState::Cancelled && run != RunState::Cancelled {
+            return Err(CoordError::Conflict(format!(
+                "job {job_id} was cancelled; submit the spec again to render it"
+            )));
+        }
+        job.rec.run = run;
+        let rec = job.rec.clone();
+        let status = job.status(now);
+        drop(inner);
+        self.persist_job(&rec)?;
+        self.notify();
+        Ok(status)
+    }
+
+    /// Registers (or re-registers after a restart) a worker. A worker coming back under the
+    /// same name lost whatever it was rendering: its old leases are requeued at once instead
+    /// of waiting out their deadlines.
+    pub fn register_worker(&self, name: &str, cached: Vec<String>) -> Result<String, CoordError> {
+        if name.is_empty() || name.len() > 200 {
+            return Err(CoordError::Invalid("worker name must be 1-200 characters".into()));
+        }
+        let mut inner = self.lock();
+        let stale: Vec<String> = inner
+            .leases
+            .iter()
+            .filter(|(_, (job, index))| {
+                inner
+                    .jobs
+                    .get(job)
+                    .and_then(|j| j.tasks.get(index))
+                    .and_then(|t| t.lease.as_ref())
+                    .is_some_and(|l| l.worker == name)
+            })
+            .map(|(id, _)| id.clone())
+            .collect();
+        for lease in &stale {
+            self.release(&mut inner, lease)?;
+        }
+        inner.workers.insert(
+            name.to_owned(),
+            WorkerRt {
+                cached: cached.into_iter().collect(),
+            },
+        );
+        drop(inner);
+        if !stale.is_empty() {
+            tracing::info!(worker = name, requeued = stale.len(), "worker re-registered; its old leases requeued");
+            self.notify();
+        }
+        Ok(name.to_owned())
+    }
+
+    /// Requeues the task of `lease` (expired or abandoned); not a failure.
+    fn release(&self, inner: &mut Inner, lease: &str) -> Result<(), CoordError> {
+        let Some((job_id, index)) = inner.leases.remove(lease) else {
+            return Ok(());
+        };
+        let Some(job) = inner.jobs.get_mut(&job_id) else {
+            return Ok(());
+        };
+        let Some(task) = job.tasks.get_mut(&index) else {
+            return Ok(());
+        };
+        if let Some(l) = task.lease.take() {
+            inner.deadlines.remove(&(ms(l.deadline_unix), l.id));
+            job.leased = job.leased.saturating_sub(1);
+        }
+        let task = task.clone();
+        job.enqueue(index);
+        self.persist_task(&job_id, index, Some(&task))
+    }
+
+    /// Leases up to `capacity` tasks to `worker`: highest priority first, then oldest job;
+    /// within a job, samples whose head the worker has cached first, then in index order;
+    /// never a task this worker already failed, never from a job that blocklisted it.
+    pub fn lease(
+        &self,
+        worker: &str,
+        capacity: u32,
+        cached: Option<Vec<String>>,
+        now: f64,
+    ) -> Result<Vec<LeasedTask>, CoordError> {
+        let mut inner = self.lock();
+        if let Some(c) = cached {
+            let w = inner.workers.entry(worker.to_owned()).or_insert(WorkerRt {
+                cached: HashSet::new(),
+            });
+            w.cached = c.into_iter().collect();
+        }
+        let cached: HashSet<String> = inner
+            .workers
+            .get(worker)
+            .map(|w| w.cached.clone())
+            .unwrap_or_default();
+        let mut order: Vec<(i32, u64, String)> = inner
+            .jobs
+            .values()
+            .filter(|j| j.rec.run == RunState::Running && !j.queued.is_empty())
+            .filter(|j| !j.rec.blocklist.contains(worker))
+            .map(|j| (-j.rec.priority, j.rec.seq, j.rec.id.clone()))
+            .collect();
+        order.sort();
+        let deadline = now + self.lease_seconds;
+        let mut out = Vec::new();
+        let mut batch = sled::Batch::default();
+        for (_, _, job_id) in order {
+            if out.len() >= capacity as usize {
+                break;
+            }
+            let Inner { jobs, leases, deadlines, .. } = &mut *inner;
+            let Some(job) = jobs.get_mut(&job_id) else {
+                continue;
+            };
+            let want = capacity as usize - out.len();
+            let failed_here = |job: &JobRt, i: u64| {
+                job.tasks
+                    .get(&i)
+                    .is_some_and(|t| t.failures.iter().any(|f| f.worker == worker))
+            };
+            let mut picked: Vec<u64> = Vec::new();
+            // Locality first: heads this worker holds.
+            let local_heads: Vec<u32> = job
+                .heads
+                .iter()
+                .enumerate()
+                .filter(|(_, h)| cached.contains(*h))
+                .map(|(i, _)| i as u32)
+                .collect();
+            for h in local_heads {
+                let Some(set) = job.by_head.get(&h) else { continue };
+                for &i in set.iter() {
+                    if picked.len() >= want {
+                        break;
+                    }
+                    if !failed_here(job, i) {
+                        picked.push(i);
+                    }
+                }
+            }
+            if picked.len() < want {
+                let chosen: HashSet<u64> = picked.iter().copied().collect();
+                for &i in job.queued.iter() {
+                    if picked.len() >= want {
+                        break;
+                    }
+                    if !chosen.contains(&i) && !failed_here(job, i) {
+                        picked.push(i);
+                    }
+                }
+            }
+            for index in picked {
+                job.dequeue(index);
+                let task = job.tasks.entry(index).or_default();
+                task.attempt += 1;
+                let lease = Lease {
+                    id: format!("{job_id}.{index}.{}", task.attempt),
+                    worker: worker.to_owned(),
+                    deadline_unix: deadline,
+                };
+                task.lease = Some(lease.clone());
+                let v = serde_json::to_vec(&*task).map_err(json_err)?;
+                batch.insert(task_key(&job_id, index), v);
+                job.leased += 1;
+                leases.insert(lease.id.clone(), (job_id.clone(), index));
+                deadlines.insert((ms(deadline), lease.id.clone()));
+                let sample = expand(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
+                let sample_json = expand_json(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
+                let assets = required_assets(&sample, &self.catalog)
+                    .map_err(|e| CoordError::BadSpec(e.to_string()))?
+                    .into_iter()
+                    .map(|a| (a.id.clone(), a.blake3.clone()))
+                    .collect();
+                out.push(LeasedTask {
+                    job_id: job_id.clone(),
+                    index,
+                    lease_id: lease.id,
+                    deadline_unix: deadline,
+                    sample_json,
+                    assets,
+                });
+            }
+        }
+        drop(inner);
+        if !out.is_empty() {
+            self.tasks_tree.apply_batch(batch).map_err(sled_err)?;
+            self.notify();
+        }
+        Ok(out)
+    }
+
+    /// Extends `worker`'s leases; returns the ones it no longer holds.
+    pub fn heartbeat(&self, worker: &str, leases: &[String], now: f64) -> Result<(Vec<String>, f64), CoordError> {
+        let mut inner = self.lock();
+        let deadline = now + self.lease_seconds;
+        let mut lost = Vec::new();
+        let mut batch = sled::Batch::default();
+        for id in leases {
+            let Some((job_id, index)) = inner.leases.get(id).cloned() else {
+                lost.push(id.clone());
+                continue;
+            };
+            let Inner { jobs, deadlines, .. } = &mut *inner;
+            let Some(job) = jobs.get_mut(&job_id) else {
+                lost.push(id.clone());
+                continue;
+            };
+            let running = job.rec.run != RunState::Cancelled;
+            match job.tasks.get_mut(&index).and_then(|t| t.lease.as_mut()) {
+                Some(l) if l.worker == worker && running => {
+                    deadlines.remove(&(ms(l.deadline_unix), l.id.clone()));
+                    l.deadline_unix = deadline;
+                    deadlines.insert((ms(deadline), l.id.clone()));
+                    if let Some(t) = job.tasks.get(&index) {
+                        batch.insert(task_key(&job_id, index), serde_json::to_vec(t).map_err(json_err)?);
+                    }
+                }
+                _ => lost.push(id.clone()),
+            }
+        }
+        drop(inner);
+        self.tasks_tree.apply_batch(batch).map_err(sled_err)?;
+        Ok((lost, deadline))
+    }
+
+    /// Requeues every lease whose deadline passed; returns how many.
+    pub fn expire(&self, now: f64) -> Result<usize, CoordError> {
+        let mut inner = self.lock();
+        let cut = ms(now);
+        let expired: Vec<String> = inner
+            .deadlines
+            .iter()
+            .take_while(|(d, _)| *d < cut)
+            .map(|(_, id)| id.clone())
+            .collect();
+        for id in &expired {
+            tracing::info!(lease = %id, "lease expired; task requeued");
+            self.release(&mut inner, id)?;
+        }
+        drop(inner);
+        if !expired.is_empty() {
+            self.notify();
+        }
+        Ok(expired.len())
+    }
+
+    /// Decides whether `worker` may upload sample (job, index) under `lease_id`.
+    pub fn check_upload(&self, worker: &str, lease_id: &str, job_id: &str, index: u64) -> Result<UploadCheck, CoordError> {
+        if self.samples.is_committed(job_id, index)? {
+            return Ok(UploadCheck::AlreadyCommitted);
+        }
+        let inner = self.lock();
+        let job = inner
+            .jobs
+            .get(job_id)
+            .ok_or_else(|| CoordError::UnknownJob(job_id.to_owned()))?;
+        if index >= job.rec.count {
+            return Err(CoordError::Invalid(format!(
+                "sample {index} does not exist in job {job_id} ({} samples)",
+                job.rec.count
+            )));
+        }
+        if job.rec.run == RunState::Cancelled {
+            return Err(CoordError::Conflict(format!("job {job_id} was cancelled")));
+        }
+        let task = job.tasks.get(&index);
+        if task.is_some_and(|t| t.failed) {
+            return Err(CoordError::Conflict(format!(
+                "sample {index} of {job_id} was failed after {MAX_FAILED_WORKERS} workers failed it"
+            )));
+        }
+        match task.and_then(|t| t.lease.as_ref()) {
+            Some(l) if l.id == lease_id && l.worker == worker => {}
+            // Held by someone else now: fenced off.
+            Some(l) => {
+                return Err(CoordError::LeaseLost(format!(
+                    "lease {lease_id} is no longer current for sample {index} of {job_id} \
+                     (now {} held by {}); drop this result",
+                    l.id, l.worker
+                )))
+            }
+            // Expired and not re-leased: the deterministic result is welcome.
+            None => {}
+        }
+        let sample = expand(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
+        let sample_json = expand_json(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
+        Ok(UploadCheck::Accept {
+            split: match sample.split {
+                lightfarm_scene::expand::Split::Train => "train".into(),
+                lightfarm_scene::expand::Split::Test => "test".into(),
+            },
+            sample_json,
+        })
+    }
+
+    /// Records that (job, index) was committed to the sample index.
+    pub fn mark_done(&self, job_id: &str, index: u64, now: f64) -> Result<(), CoordError> {
+        let mut inner = self.lock();
+        let Inner { jobs, leases, deadlines, .. } = &mut *inner;
+        let Some(job) = jobs.get_mut(job_id) else {
+            return Ok(());
+        };
+        job.dequeue(index);
+        if let Some(task) = job.tasks.remove(&index) {
+            if let Some(l) = task.lease {
+                leases.remove(&l.id);
+                deadlines.remove(&(ms(l.deadline_unix), l.id));
+                job.leased = job.leased.saturating_sub(1);
+            }
+        }
+        job.done += 1;
+        job.commits.push_back(now);
+        while job.commits.front().is_some_and(|t| now - t > RATE_WINDOW_S) {
+            job.commits.pop_front();
+        }
+        drop(inner);
+        self.persist_task(job_id, index, None)?;
+        self.notify();
+        Ok(())
+    }
+
+    /// A worker reports it could not render its leased task. Returns whether it will be retried.
+    pub fn fail(&self, worker: &str, lease_id: &str, reason: &str, now: f64) -> Result<bool, CoordError> {
+        let mut inner = self.lock();
+        let Some((job_id, index)) = inner.leases.get(lease_id).cloned() else {
+            return Err(CoordError::LeaseLost(format!(
+                "lease {lease_id} is not current (expired or already finished)"
+            )));
+        };
+        let Inner { jobs, leases, deadlines, .. } = &mut *inner;
+        let Some(job) = jobs.get_mut(&job_id) else {
+            return Err(CoordError::UnknownJob(job_id));
+        };
+        let Some(task) = job.tasks.get_mut(&index) else {
+            return Err(CoordError::LeaseLost(format!("lease {lease_id} is not current")));
+        };
+        if task.lease.as_ref().is_none_or(|l| l.worker != worker) {
+            return Err(CoordError::LeaseLost(format!("lease {lease_id} is not held by {worker}")));
+        }
+        if let Some(l) = task.lease.take() {
+            leases.remove(&l.id);
+            deadlines.remove(&(ms(l.deadline_unix), l.id));
+            job.leased = job.leased.saturating_sub(1);
+        }
+        let failure = Failure {
+            worker: worker.to_owned(),
+            reason: reason.chars().take(4000).collect(),
+            at_unix: now,
+        };
+        task.failures.push(failure.clone());
+        let distinct: HashSet<&str> = task.failures.iter().map(|f| f.worker.as_str()).collect();
+        let retry = distinct.len() < MAX_FAILED_WORKERS;
+        if !retry {
+            task.failed = true;
+        }
+        let task = task.clone();
+        job.recent.push_back((index, failure));
+        while job.recent.len() > RECENT_FAILURES {
+            job.recent.pop_front();
+        }
+        if retry {
+            job.enqueue(index);
+        } else {
+            job.failed += 1;
+            tracing::warn!(job = %job_id, index, "task failed on {MAX_FAILED_WORKERS} workers; giving up");
+        }
+        let n = job.worker_failures.entry(worker.to_owned()).or_default();
+        *n += 1;
+        let blocklisted = *n >= BLOCKLIST_AFTER && job.rec.blocklist.insert(worker.to_owned());
+        let rec = job.rec.clone();
+        drop(inner);
+        self.persist_task(&job_id, index, Some(&task))?;
+        if blocklisted {
+            tracing::warn!(job = %job_id, worker, "worker blocklisted for this job after repeated failures");
+            self.persist_job(&rec)?;
+        }
+        self.notify();
+        Ok(retry)
+    }
+
+    /// Totals over all jobs, for metrics: (queued, leased, done, failed).
+    pub fn totals(&self) -> (u64, u64, u64, u64) {
+        let inner = self.lock();
+        inner.jobs.values().fold((0, 0, 0, 0), |(q, l, d, f), j| {
+            (q + j.queued.len() as u64, l + j.leased, d + j.done, f + j.failed)
+        })
+    }
+}
+
+// `recover` matches on a TaskRecord with a lease; the alias keeps that pattern short.
+use TaskRecord as Task;

@@ -1,0 +1,184 @@
+//! Opening the coordinator's data directory and serving its gRPC API.
+
+use std::collections::HashSet;
+use std::future::Future;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+use lightfarm_proto::v1 as pb;
+use lightfarm_scene::Catalog;
+use lightfarm_store::{BlobStore, DiskBlobStore, SampleIndex};
+use tonic::transport::Server;
+use tonic::{Request, Status};
+
+use crate::error::CoordError;
+use crate::metrics::Metrics;
+use crate::scheduler::Scheduler;
+use crate::service::{now_unix, JobsService, SamplesService, Shared, WorkersService};
+
+/// How a coordinator runs; `lightfarm serve coordinator` fills it from flags and env.
+#[derive(Clone, Debug)]
+pub struct CoordinatorConfig {
+    /// sled database and blobs live here; everything survives a restart.
+    pub data_dir: PathBuf,
+    /// Bearer token every RPC must carry.
+    pub token: String,
+    pub lease_seconds: f64,
+    pub heartbeat_seconds: u32,
+    pub max_upload_bytes: u64,
+    /// The asset catalog jobs are expanded against; its files are served to workers.
+    pub catalog: Catalog,
+    /// PEM certificate and key: serve TLS instead of plain HTTP/2.
+    pub tls: Option<(PathBuf, PathBuf)>,
+}
+
+impl CoordinatorConfig {
+    pub fn new(data_dir: PathBuf, token: String, catalog: Catalog) -> Self {
+        CoordinatorConfig {
+            data_dir,
+            token,
+            lease_seconds: 60.0,
+            heartbeat_seconds: 10,
+            max_upload_bytes: 256 << 20,
+            catalog,
+            tls: None,
+        }
+    }
+}
+
+/// An opened coordinator, ready to serve.
+pub struct Coordinator {
+    shared: Arc<Shared>,
+    token: String,
+    tls: Option<(PathBuf, PathBuf)>,
+}
+
+fn io(path: &std::path::Path, e: impl std::fmt::Display) -> CoordError {
+    CoordError::Storage(format!("{}: {e}", path.display()))
+}
+
+impl Coordinator {
+    /// Opens (or creates) the data directory: the sled db, the blob store, and the catalog's
+    /// files imported into the blob store so workers can fetch them by hash.
+    pub fn open(config: CoordinatorConfig) -> Result<Coordinator, CoordError> {
+        if config.token.is_empty() {
+            return Err(CoordError::Invalid(
+                "a bearer token is required: pass --token or set LIGHTFARM_TOKEN".into(),
+            ));
+        }
+        std::fs::create_dir_all(&config.data_dir).map_err(|e| io(&config.data_dir, e))?;
+        let db_path = config.data_dir.join("db");
+        let db = sled::Config::new()
+            .path(&db_path)
+            .open()
+            .map_err(|e| io(&db_path, e))?;
+        let blobs: Arc<dyn BlobStore> = Arc::new(DiskBlobStore::open(
+            &config.data_dir.join("blobs"),
+            config.max_upload_bytes.max(1 << 30),
+        )?);
+        let mut assets = HashSet::new();
+        for asset in &config.catalog.assets {
+            let path = config.catalog.path_of(asset);
+            let hash = blobs.put_file(&path)?;
+            if hash != asset.blake3 {
+                return Err(CoordError::Invalid(format!(
+                    "asset {} at {}: file hash {hash} differs from the catalog's {}; run \
+                     `lightfarm assets verify`",
+                    asset.id,
+                    path.display(),
+                    asset.blake3
+                )));
+            }
+            assets.insert(hash);
+        }
+        let catalog_file = config.catalog.root.join(lightfarm_scene::catalog::CATALOG_FILE);
+        let catalog_blake3 = blobs.put_file(&catalog_file)?;
+        assets.insert(catalog_blake3.clone());
+        let samples = SampleIndex::open(&db)?;
+        let scheduler = Arc::new(Scheduler::open(&db, config.catalog.clone(), samples, config.lease_seconds)?);
+        let shared = Arc::new(Shared {
+            scheduler,
+            blobs,
+            metrics: Arc::new(Metrics::new()),
+            max_upload_bytes: config.max_upload_bytes,
+            heartbeat_seconds: config.heartbeat_seconds,
+            assets,
+            catalog_blake3,
+            db,
+        });
+        Ok(Coordinator {
+            shared,
+            token: config.token,
+            tls: config.tls,
+        })
+    }
+
+    pub fn scheduler(&self) -> &Arc<Scheduler> {
+        &self.shared.scheduler
+    }
+
+    pub fn metrics(&self) -> &Arc<Metrics> {
+        &self.shared.metrics
+    }
+
+    /// Serves gRPC on `listener` until `shutdown` resolves, expiring leases in the background.
+    pub async fn serve(
+        self,
+        listener: tokio::net::TcpListener,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> Result<(), CoordError> {
+        let expected = format!("Bearer {}", self.token);
+        let auth = move |req: Request<()>| -> Result<Request<()>, Status> {
+            match req.metadata().get("authorization").and_then(|v| v.to_str().ok()) {
+                Some(v) if constant_time_eq(v.as_bytes(), expected.as_bytes()) => Ok(req),
+                Some(_) => Err(Status::unauthenticated(
+                    "wrong bearer token: use the coordinator's --token / LIGHTFARM_TOKEN",
+                )),
+                None => Err(Status::unauthenticated(
+                    "missing bearer token: pass --token or set LIGHTFARM_TOKEN",
+                )),
+            }
+        };
+        let shared = self.shared.clone();
+        let expiry = tokio::spawn(async move {
+            let mut tick = tokio::time::interval(Duration::from_millis(500));
+            loop {
+                tick.tick().await;
+                match shared.scheduler.expire(now_unix()) {
+                    Ok(n) => shared.metrics.expired_leases.inc_by(n as u64),
+                    Err(e) => tracing::error!("lease expiry: {e}"),
+                }
+            }
+        });
+        let mut builder = Server::builder();
+        if let Some((cert, key)) = &self.tls {
+            let cert = std::fs::read(cert).map_err(|e| io(cert, e))?;
+            let key = std::fs::read(key).map_err(|e| io(key, e))?;
+            builder = builder
+                .tls_config(tonic::transport::ServerTlsConfig::new().identity(tonic::transport::Identity::from_pem(cert, key)))
+                .map_err(|e| CoordError::Invalid(format!("TLS: {e}")))?;
+        }
+        let result = builder
+            .add_service(
+                pb::jobs_server::JobsServer::with_interceptor(JobsService(self.shared.clone()), auth.clone())
+            )
+            .add_service(
+                pb::workers_server::WorkersServer::with_interceptor(WorkersService(self.shared.clone()), auth.clone())
+            )
+            .add_service(
+                pb::samples_server::SamplesServer::with_interceptor(SamplesService(self.shared.clone()), auth)
+            )
+            .serve_with_incoming_shutdown(tokio_stream::wrappers::TcpListenerStream::new(listener), shutdown)
+            .await
+            .map_err(|e| CoordError::Storage(format!("gRPC server: {e}")));
+        expiry.abort();
+        let _ = self.shared.db.flush_async().await;
+        result
+    }
+}
+
+/// Token comparison that does not stop at the first differing byte.
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
