@@ -96,6 +96,12 @@ pub trait BlobStore: Send + Sync + 'static {
         w.finish(bytes.len() as u64, &hash)
     }
 
+    /// Makes every finished blob durable (stores opened with deferred sync); a no-op where
+    /// each blob is already durable when `finish` returns.
+    fn sync(&self) -> Result<(), StoreError> {
+        Ok(())
+    }
+
     /// Reads a whole blob and checks that its bytes still hash to `hash`
     /// ([`StoreError::Corrupt`] otherwise).
     fn read_verified(&self, hash: &str) -> Result<Vec<u8>, StoreError> {

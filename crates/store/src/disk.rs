@@ -24,6 +24,9 @@ struct Inner {
     tmp: PathBuf,
     max_blob_bytes: u64,
     next_tmp: AtomicU64,
+    /// Skip the per-blob fsyncs; the owner calls [`BlobStore::sync`] before relying on
+    /// durability (group commit: one file-system sync for many uploads).
+    deferred_sync: bool,
 }
 
 impl DiskBlobStore {
@@ -31,6 +34,14 @@ impl DiskBlobStore {
     /// refused. Temp files left by a killed process are removed here, since nothing can ever
     /// finish them.
     pub fn open(root: &Path, max_blob_bytes: u64) -> Result<Self, StoreError> {
+        Self::open_with(root, max_blob_bytes, false)
+    }
+
+    /// As [`open`](Self::open); with `deferred_sync` a finished blob is renamed into place
+    /// without fsyncs, and durability comes from calling [`BlobStore::sync`] (which syncs the
+    /// whole file system once) before acknowledging. After a process crash (kill -9) both
+    /// modes keep every finished blob; they differ only on power loss before the sync.
+    pub fn open_with(root: &Path, max_blob_bytes: u64, deferred_sync: bool) -> Result<Self, StoreError> {
         let tmp = root.join(TMP_DIR);
         fs::create_dir_all(&tmp).map_err(|e| StoreError::io(&tmp, e))?;
         let mut removed = 0usize;
@@ -61,6 +72,7 @@ impl DiskBlobStore {
                 tmp,
                 max_blob_bytes,
                 next_tmp: AtomicU64::new(0),
+                deferred_sync,
             }),
         })
     }
@@ -92,6 +104,13 @@ impl DiskBlobStore {
 }
 
 impl BlobStore for DiskBlobStore {
+    fn sync(&self) -> Result<(), StoreError> {
+        if !self.inner.deferred_sync {
+            return Ok(());
+        }
+        sync_file_system(&self.inner.root)
+    }
+
     fn begin(&self) -> Result<Box<dyn BlobWriter>, StoreError> {
         let n = self.inner.next_tmp.fetch_add(1, Ordering::Relaxed);
         let path = self
@@ -177,8 +196,11 @@ impl DiskWriter {
             .map_err(|e| StoreError::io(&self.tmp_path, e.into_error()))?;
         // The rename must not become visible before the data is on disk, or a power cut could
         // leave a blob whose bytes don't match its name.
-        file.sync_all()
-            .map_err(|e| StoreError::io(&self.tmp_path, e))?;
+        let durable_now = !self.store.inner.deferred_sync;
+        if durable_now {
+            file.sync_all()
+                .map_err(|e| StoreError::io(&self.tmp_path, e))?;
+        }
         drop(file);
         let dest = self.store.blob_path(hash)?;
         let dir = dest.parent().map(Path::to_path_buf).unwrap_or_default();
@@ -187,9 +209,11 @@ impl DiskWriter {
         // Same name means same content, so a concurrent upload of the same sample that got
         // there first is as good as ours; renaming over it is harmless either way.
         fs::rename(&self.tmp_path, &dest).map_err(|e| StoreError::io(&dest, e))?;
-        sync_dir(&dir)?;
-        if new_dir {
-            sync_dir(self.store.root())?;
+        if durable_now {
+            sync_dir(&dir)?;
+            if new_dir {
+                sync_dir(self.store.root())?;
+            }
         }
         Ok(())
     }
@@ -257,4 +281,28 @@ fn sync_dir(dir: &Path) -> Result<(), StoreError> {
     #[cfg(not(unix))]
     let _ = dir;
     Ok(())
+}
+
+/// One `syncfs(2)` for the file system holding `root`: every deferred blob and rename at once.
+fn sync_file_system(root: &Path) -> Result<(), StoreError> {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        let dir = File::open(root).map_err(|e| StoreError::io(root, e))?;
+        // SAFETY: syncfs takes a valid open file descriptor, which `dir` holds for the call.
+        let rc = unsafe { libc::syncfs(dir.as_raw_fd()) };
+        if rc != 0 {
+            return Err(StoreError::io(root, std::io::Error::last_os_error()));
+        }
+        Ok(())
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        // Elsewhere a full sync(2) is the portable equivalent.
+        let _ = root;
+        std::process::Command::new("sync")
+            .status()
+            .map(|_| ())
+            .map_err(|e| StoreError::io(root, e))
+    }
 }

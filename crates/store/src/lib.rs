@@ -8,6 +8,7 @@ mod error;
 mod export;
 mod index;
 mod memory;
+mod tiered;
 
 pub use blob::{hash_hex, is_hash, BlobStore, BlobWriter, Hash};
 pub use disk::DiskBlobStore;
@@ -15,3 +16,4 @@ pub use error::StoreError;
 pub use export::{export, read_export, ExportFormat, ExportReport, ExportWriter, ExportedSample};
 pub use index::{CommitOutcome, SampleIndex, SampleRecord};
 pub use memory::MemoryBlobStore;
+pub use tiered::{TieredBlobStore, DEFAULT_INLINE_MAX};

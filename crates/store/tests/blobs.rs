@@ -4,7 +4,7 @@
 use std::io::Read;
 use std::path::PathBuf;
 
-use lightfarm_store::{hash_hex, is_hash, BlobStore, DiskBlobStore, MemoryBlobStore, StoreError};
+use lightfarm_store::{hash_hex, is_hash, BlobStore, DiskBlobStore, MemoryBlobStore, StoreError, TieredBlobStore};
 
 const LIMIT: u64 = 1 << 20;
 
@@ -47,6 +47,48 @@ impl Harness for Disk {
     fn blob_count(&self) -> usize {
         let mut n = 0;
         for fan in std::fs::read_dir(self.store.root()).expect("root") {
+            let fan = fan.expect("entry");
+            if fan.file_name() == "tmp" {
+                continue;
+            }
+            n += std::fs::read_dir(fan.path()).expect("fan dir").count();
+        }
+        n
+    }
+}
+
+/// Inline limit of 1000 bytes, so the suite's small payloads go inline and its large ones to
+/// disk.
+struct Tiered {
+    _dir: tempfile::TempDir,
+    _db: sled::Db,
+    store: TieredBlobStore,
+}
+
+impl Tiered {
+    fn new() -> Self {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let db = sled::Config::new().path(dir.path().join("db")).open().expect("db");
+        let disk = DiskBlobStore::open(&dir.path().join("blobs"), LIMIT).expect("open");
+        let store = TieredBlobStore::open(&db, disk, 1000).expect("tiered");
+        Tiered { _dir: dir, _db: db, store }
+    }
+}
+
+impl Harness for Tiered {
+    type S = TieredBlobStore;
+    fn store(&self) -> &TieredBlobStore {
+        &self.store
+    }
+    fn leftovers(&self) -> usize {
+        self.store.disk().temp_files().expect("temp files").len()
+    }
+    fn stages_uploads(&self) -> bool {
+        false
+    }
+    fn blob_count(&self) -> usize {
+        let mut n = self.store.inline_count();
+        for fan in std::fs::read_dir(self.store.disk().root()).expect("root") {
             let fan = fan.expect("entry");
             if fan.file_name() == "tmp" {
                 continue;
@@ -343,6 +385,7 @@ macro_rules! blob_suite {
 
 blob_suite!(disk, Disk::new());
 blob_suite!(memory, Memory(MemoryBlobStore::new(LIMIT)));
+blob_suite!(tiered, Tiered::new());
 
 #[test]
 fn disk_malformed_hash_never_touches_outside_root() {

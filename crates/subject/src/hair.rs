@@ -57,8 +57,8 @@
 //! | ponytail |  14 000 |         40 |    0.18 mm |          1 120 000 |
 //!
 //! Segments are about 4 mm for short hair, 8 mm for a bob and 12 mm for long hair and
-//! ponytails (up to 15 mm for the longest, to stay in the budget); curly hair gets at least six
-//! segments per coil. Per-strand width varies ±15 %.
+//! ponytails (up to 17 mm for the longest strands, 60 cm + 15 %, to stay in the budget); curly
+//! hair gets at least six segments per coil. Per-strand width varies ±15 %.
 //!
 //! **Determinism.** All randomness comes from SplitMix64 streams keyed by (seed, purpose,
 //! index), every loop runs in a fixed order on one thread, and the few transcendental
@@ -378,6 +378,7 @@ struct Style {
 }
 
 const STYLES: [Style; 6] = [
+    // Stubble is placed directly (see `Grower::grow_buzz`); the growth fields are unused.
     Style {
         name: "buzz",
         kind: Kind::Buzz,
@@ -1037,7 +1038,7 @@ impl Skin {
     /// and whether it is on an open edge; `None` in free space (no vertex within
     /// [`PROBE_RANGE`]).
     fn probe_vertex(&self, p: Vec3) -> Option<(f32, Vec3, bool)> {
-        let (i, _) = self.grid.nearest(&self.positions, p, PROBE_RANGE)?;
+        let (i, _) = self.grid.nearest(p, PROBE_RANGE)?;
         let i = i as usize;
         let (v, n) = (self.positions[i], self.normals[i]);
         Some(((p - v).dot(n), n, self.boundary[i]))
@@ -1175,14 +1176,13 @@ impl Grower<'_> {
     fn grow(&self, roots: &[Root], length: f32) -> Strands {
         let parting = self.parting();
         let stretch = self.curl.stretch();
-        let plans: Vec<StrandPlan> = roots
+        let mut plans: Vec<StrandPlan> = roots
             .iter()
             .enumerate()
             .map(|(i, root)| self.plan(i, *root, length, stretch, parting))
             .collect();
         let guides = assign_guides(roots);
         let tie = (self.style.kind == Kind::Ponytail).then(|| Tail::new(self.skin, self.frame));
-        let mut plans = plans;
         if let Some(tail) = &tie {
             // Hair keeps its side through the tie, so neighbours on the scalp stay neighbours
             // in the tail.
@@ -1458,12 +1458,12 @@ impl Grower<'_> {
         // Most of a long-grown strand is cut off; a subset tells roughly where the cut will be,
         // so the full set only grows a little past it.
         let stride = (plans.len() / 500).max(1);
-        let probe: Vec<Vec<Vec3>> = plans
+        let subset: Vec<Vec<Vec3>> = plans
             .iter()
             .step_by(stride)
             .map(|p| self.grow_path(p, steps, GROW_STEP, |_, _| Steer::Comb))
             .collect();
-        let rough_cut = cut_height(&probe, &vec![0.0; probe.len()], mean_length, MIN_LEN);
+        let rough_cut = cut_height(&subset, &vec![0.0; subset.len()], mean_length, MIN_LEN);
         let stop_below = rough_cut - 0.03;
         let long: Vec<Vec<Vec3>> = plans
             .iter()
@@ -1667,7 +1667,7 @@ fn assign_guides(roots: &[Root]) -> Vec<usize> {
             if i < n_guides {
                 i
             } else {
-                grid.nearest(&positions, positions[i], f32::INFINITY)
+                grid.nearest(positions[i], f32::INFINITY)
                     .map_or(0, |(g, _)| g as usize)
             }
         })
@@ -1892,6 +1892,8 @@ struct PointGrid {
     /// Prefix sums into `items`, one per cell plus one.
     starts: Vec<u32>,
     items: Vec<u32>,
+    /// The points of `items`, in the same (cell) order, so a query reads memory in sequence.
+    item_points: Vec<Vec3>,
     /// Chebyshev distance, in cells, to the nearest non-empty cell (capped at 255).
     empty_rings: Vec<u8>,
 }
@@ -1978,22 +1980,25 @@ impl PointGrid {
                 }
             }
         }
+        let item_points = items.iter().map(|&i| points[i as usize]).collect();
         PointGrid {
             origin: lo,
             cell,
             dims,
             starts,
             items,
+            item_points,
             empty_rings,
         }
     }
 
     /// Nearest indexed point to `p` within `max_dist`, with its squared distance.
-    fn nearest(&self, points: &[Vec3], p: Vec3, max_dist: f32) -> Option<(u32, f32)> {
+    fn nearest(&self, p: Vec3, max_dist: f32) -> Option<(u32, f32)> {
         if self.items.is_empty() || !p.is_finite() {
             return None;
         }
         let c = (p - self.origin) / self.cell;
+        let f = c - c.floor();
         let c = c.floor();
         let dims = self.dims.map(|d| d as i64);
         let (cx, cy, cz) = (c.x as i64, c.y as i64, c.z as i64);
@@ -2004,6 +2009,13 @@ impl PointGrid {
         let outside = (cx - qx).abs().max((cy - qy).abs()).max((cz - qz).abs());
         let q_cell = ((qz * dims[1] + qy) * dims[0] + qx) as usize;
         let first_ring = (self.empty_rings[q_cell] as i64).max(outside.saturating_sub(1));
+        // Points in ring r are at least r - 1 cells plus p's distance to its own cell's
+        // nearest face away.
+        let inset = if outside == 0 {
+            f.min(Vec3::ONE - f).min_element().max(0.0)
+        } else {
+            0.0
+        };
         let mut best: Option<(u32, f32)> = None;
         let mut best_d2 = if max_dist.is_finite() {
             max_dist * max_dist
@@ -2013,9 +2025,11 @@ impl PointGrid {
         let max_ring = dims[0].max(dims[1]).max(dims[2]) + outside + 1;
         let mut r = first_ring;
         while r <= max_ring {
-            let lower = (r - 1).max(0) as f32 * self.cell;
-            if lower * lower > best_d2 {
-                break;
+            if r > 0 {
+                let lower = ((r - 1) as f32 + inset) * self.cell;
+                if lower * lower > best_d2 {
+                    break;
+                }
             }
             for dz in -r..=r {
                 let z = cz + dz;
@@ -2032,24 +2046,31 @@ impl PointGrid {
                     let mut dx = -r;
                     while dx <= r {
                         let x = cx + dx;
-                        if x >= 0 && x < dims[0] {
-                            let cell = ((z * dims[1] + y) * dims[0] + x) as usize;
-                            let (a, b) =
-                                (self.starts[cell] as usize, self.starts[cell + 1] as usize);
-                            if b > a && self.cell_distance_sq(p, x, y, z) <= best_d2 {
-                                for &i in &self.items[a..b] {
-                                    let d2 = points[i as usize].distance_squared(p);
-                                    if d2 <= best_d2
-                                        && best
-                                            .is_none_or(|(bi, bd)| d2 < bd || (d2 == bd && i < bi))
-                                    {
-                                        best = Some((i, d2));
-                                        best_d2 = d2;
-                                    }
-                                }
+                        dx += step;
+                        if x < 0 || x >= dims[0] {
+                            continue;
+                        }
+                        let cell = ((z * dims[1] + y) * dims[0] + x) as usize;
+                        let (a, b) = (self.starts[cell] as usize, self.starts[cell + 1] as usize);
+                        if b == a || self.cell_distance_sq(p, x, y, z) > best_d2 {
+                            continue;
+                        }
+                        for (k, q) in self.item_points[a..b].iter().enumerate() {
+                            let d2 = q.distance_squared(p);
+                            if d2 > best_d2 {
+                                continue;
+                            }
+                            let i = self.items[a + k];
+                            // Ties go to the lower index, whatever the scan order.
+                            let better = match best {
+                                None => true,
+                                Some((bi, bd)) => d2 < bd || i < bi,
+                            };
+                            if better {
+                                best = Some((i, d2));
+                                best_d2 = d2;
                             }
                         }
-                        dx += step;
                     }
                 }
             }

@@ -172,12 +172,12 @@ fn grow_all(head: &Head, samples: Vec<HairSample>, seed: u64) -> Vec<(HairSample
     ra.into_iter().map(|(_, s, h)| (s, h)).collect()
 }
 
-/// Every style at mid-range parameters on MakeHuman head 01 (at half density, to keep the
+/// Every style at mid-range parameters on MakeHuman head 01 (at 40 % density, to keep the
 /// tests fast; the budget test grows full heads).
 fn mh01_styles() -> &'static [(HairSample, Strands)] {
     static CELL: OnceLock<Vec<(HairSample, Strands)>> = OnceLock::new();
     CELL.get_or_init(|| {
-        let samples = HAIR_STYLES.iter().map(|s| typical(s, 0.5)).collect();
+        let samples = HAIR_STYLES.iter().map(|s| typical(s, 0.4)).collect();
         grow_all(head(HeadId::Mh01), samples, 11)
     })
 }
@@ -191,7 +191,7 @@ fn other_heads() -> &'static [(HeadId, HairSample, Strands)] {
             (HeadId::Mh04, ["short", "long"]),
             (HeadId::Ict7, ["bob", "ponytail"]),
         ] {
-            let samples = styles.iter().map(|s| typical(s, 0.3)).collect();
+            let samples = styles.iter().map(|s| typical(s, 0.25)).collect();
             for (s, h) in grow_all(head(id), samples, 23) {
                 out.push((id, s, h));
             }
@@ -242,10 +242,8 @@ fn every_style_validates_and_fits_the_triangle_budget_at_its_longest() {
         .collect();
     for (s, strands) in grow_all(h, samples, 3) {
         strands.validate().unwrap();
-        let triangles = strands
-            .ribbon_mesh(Vec3::new(0.0, 0.0, 1.0), "hair")
-            .triangle_count();
-        assert_eq!(triangles, 2 * strands.segment_count());
+        // Two ribbon triangles a segment (`ribbons_face_the_eye` checks the mesh itself).
+        let triangles = 2 * strands.segment_count();
         assert!(
             triangles <= BUDGET_TRIANGLES,
             "{}: {triangles} ribbon triangles",
@@ -322,9 +320,13 @@ fn roots_lie_on_the_scalp() {
             let d = h.index.signed_distance(r, 0.002);
             assert!(d > 0.0 && d <= 0.001, "{what}: {d} m from the skin");
             assert!(!in_face_box(lm, r), "{what}: on the face");
-            // Over the face the hairline is at least 4 cm above the eye line.
+            // Over the face the hairline is at least 4 cm above the eye line, over the
+            // forehead between the eye centres 5 cm.
             if r.z > ear_z + 0.02 && (r.x - lm.nose_bridge.x).abs() < face_half {
                 assert!(r.y > eye_y + 0.04, "{what}: below the frontal hairline");
+            }
+            if r.z > ear_z + 0.02 && r.x < lm.eye_left.x && r.x > lm.eye_right.x {
+                assert!(r.y > eye_y + 0.05, "{what}: below the forehead hairline");
             }
             // Nothing below the nape, nothing on the neck or shoulders.
             assert!(r.y > eye_y - 0.085, "{what}: below the nape hairline");
@@ -405,25 +407,16 @@ fn mean_arc_length_matches_the_sample() {
 #[test]
 fn strand_count_scales_with_density() {
     let h = head(HeadId::Mh01);
-    for (s, half) in mh01_styles()
-        .iter()
-        .filter(|(s, _)| s.style == "short" || s.style == "curly")
-    {
-        let full = grow_hair(
-            &h.surface,
-            &h.lm,
-            &HairSample {
-                density: 1.0,
-                ..s.clone()
-            },
-            11,
-        )
-        .unwrap();
-        let ratio = half.strand_count() as f64 / full.strand_count() as f64;
+    for style in ["buzz", "curly"] {
+        let count = |density| {
+            grow_hair(&h.surface, &h.lm, &typical(style, density), 11)
+                .unwrap()
+                .strand_count()
+        };
+        let ratio = count(0.5) as f64 / count(1.0) as f64;
         assert!(
             (ratio - 0.5).abs() <= 0.025,
-            "{}: density 0.5 gives {ratio} of density 1",
-            s.style
+            "{style}: density 0.5 gives {ratio} of density 1"
         );
     }
 }
@@ -445,7 +438,7 @@ fn curl_lowers_the_chord_to_arc_ratio() {
     ] {
         let r: Vec<f32> = curls
             .iter()
-            .map(|&c| ratio(sample(style, 0.1, length, c, 0.0)))
+            .map(|&c| ratio(sample(style, 0.05, length, c, 0.0)))
             .collect();
         assert!(
             r[0] > r[2] + 0.01,
@@ -486,7 +479,7 @@ fn clumping_pulls_tips_together() {
         ("ponytail", 0.35),
     ] {
         let spread = |clumping| {
-            let s = sample(style, 0.2, length, 0.0, clumping);
+            let s = sample(style, 0.1, length, 0.0, clumping);
             tip_spread(&grow_hair(&h.surface, &h.lm, &s, 4).unwrap())
         };
         let (loose, clumped) = (spread(0.0), spread(0.8));
@@ -1173,66 +1166,4 @@ fn closest_on_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
     }
     let denom = 1.0 / (va + vb + vc);
     a + ab * (vb * denom) + ac * (vc * denom)
-}
-
-#[test]
-#[ignore]
-fn bench() {
-    for id in [HeadId::Mh01, HeadId::Ict7] {
-        let t = std::time::Instant::now();
-        let h = head(id);
-        println!("{id:?} load {:?}", t.elapsed());
-        for r in HAIR_RANGES {
-            let s = sample(r.style, 1.0, r.length_m[1], r.curl[1], r.clumping[1]);
-            let t = std::time::Instant::now();
-            let strands = grow_hair(&h.surface, &h.lm, &s, 3).unwrap();
-            let g = t.elapsed();
-            let t = std::time::Instant::now();
-            let mut n = 0;
-            for &p in &strands.points {
-                if h.index.height(p).is_some() {
-                    n += 1;
-                }
-            }
-            println!(
-                "{id:?} {} grow {:?} check {:?} {n} tris {}",
-                r.style,
-                g,
-                t.elapsed(),
-                2 * strands.segment_count()
-            );
-        }
-    }
-}
-
-#[test]
-#[ignore]
-fn dump() {
-    use std::io::Write;
-    let which = std::env::var("HEAD").unwrap_or("mh01".into());
-    let id = match which.as_str() {
-        "mh01" => HeadId::Mh01,
-        "mh04" => HeadId::Mh04,
-        _ => HeadId::Ict7,
-    };
-    let h = head(id);
-    let write = |name: &str, s: &Strands| {
-        let mut f =
-            std::fs::File::create(format!("/tmp/hairx/strands_{which}_{name}.txt")).unwrap();
-        for i in 0..s.strand_count() {
-            let line: Vec<String> = s
-                .strand(i)
-                .0
-                .iter()
-                .map(|q| format!("{} {} {}", q.x, q.y, q.z))
-                .collect();
-            writeln!(f, "{}", line.join(" ")).unwrap();
-        }
-    };
-    for style in HAIR_STYLES {
-        let s = typical(style, 1.0);
-        let strands = grow_hair(&h.surface, &h.lm, &s, 11).unwrap();
-        write(style, &strands);
-    }
-    write("brows", &grow_eyebrows(&h.surface, &h.lm, 3));
 }

@@ -5,6 +5,7 @@
 //! [`service`] the gRPC handlers; [`server`] opening the data directory and serving;
 //! [`metrics`] Prometheus; [`error`] the one mapping to gRPC status codes.
 
+pub mod durability;
 pub mod error;
 pub mod metrics;
 pub mod scheduler;

@@ -20,7 +20,7 @@ use std::collections::{BTreeMap, BTreeSet, HashMap, HashSet, VecDeque};
 use std::sync::Mutex;
 
 use lightfarm_scene::catalog::Catalog;
-use lightfarm_scene::expand::{expand, expand_json, required_assets};
+use lightfarm_scene::expand::{expand, required_assets, SampleSpec};
 use lightfarm_scene::spec::{DatasetSpec, ResolvedSpec};
 use lightfarm_store::SampleIndex;
 use serde::{Deserialize, Serialize};
@@ -221,6 +221,12 @@ fn task_key(job: &str, index: u64) -> Vec<u8> {
 
 fn ms(t: f64) -> u64 {
     (t * 1000.0).max(0.0) as u64
+}
+
+/// The sample as one-line JSON (what tasks carry and the index stores; `lightfarm spec expand`
+/// prints the same content pretty).
+fn compact_json(sample: &SampleSpec) -> Result<String, CoordError> {
+    serde_json::to_string(sample).map_err(|e| CoordError::BadSpec(format!("sample {}: {e}", sample.index)))
 }
 
 fn sled_err(e: sled::Error) -> CoordError {
@@ -614,7 +620,7 @@ impl Scheduler {
                 leases.insert(lease.id.clone(), (job_id.clone(), index));
                 deadlines.insert((ms(deadline), lease.id.clone()));
                 let sample = expand(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
-                let sample_json = expand_json(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
+                let sample_json = compact_json(&sample)?;
                 let assets = required_assets(&sample, &self.catalog)
                     .map_err(|e| CoordError::BadSpec(e.to_string()))?
                     .into_iter()
@@ -732,7 +738,7 @@ impl Scheduler {
             None => {}
         }
         let sample = expand(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
-        let sample_json = expand_json(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
+        let sample_json = compact_json(&sample)?;
         Ok(UploadCheck::Accept {
             split: match sample.split {
                 lightfarm_scene::expand::Split::Train => "train".into(),

@@ -8,10 +8,11 @@ use std::time::Duration;
 
 use lightfarm_proto::v1 as pb;
 use lightfarm_scene::Catalog;
-use lightfarm_store::{BlobStore, DiskBlobStore, SampleIndex};
+use lightfarm_store::{BlobStore, DiskBlobStore, SampleIndex, TieredBlobStore, DEFAULT_INLINE_MAX};
 use tonic::transport::Server;
 use tonic::{Request, Status};
 
+use crate::durability::GroupSync;
 use crate::error::CoordError;
 use crate::metrics::Metrics;
 use crate::scheduler::Scheduler;
@@ -52,6 +53,8 @@ pub struct Coordinator {
     shared: Arc<Shared>,
     token: String,
     tls: Option<(PathBuf, PathBuf)>,
+    /// The group-sync queue and the db it flushes; the flusher task starts in `serve`.
+    sync: (tokio::sync::mpsc::UnboundedReceiver<tokio::sync::oneshot::Sender<Result<(), String>>>, sled::Db),
 }
 
 fn io(path: &std::path::Path, e: impl std::fmt::Display) -> CoordError {
@@ -69,14 +72,19 @@ impl Coordinator {
         }
         std::fs::create_dir_all(&config.data_dir).map_err(|e| io(&config.data_dir, e))?;
         let db_path = config.data_dir.join("db");
+        // No background flushes: the group sync flushes after the blobs are synced (see
+        // durability.rs), at least once a second.
         let db = sled::Config::new()
             .path(&db_path)
+            .flush_every_ms(None)
             .open()
             .map_err(|e| io(&db_path, e))?;
-        let blobs: Arc<dyn BlobStore> = Arc::new(DiskBlobStore::open(
+        let disk = DiskBlobStore::open_with(
             &config.data_dir.join("blobs"),
             config.max_upload_bytes.max(1 << 30),
-        )?);
+            true,
+        )?;
+        let blobs: Arc<dyn BlobStore> = Arc::new(TieredBlobStore::open(&db, disk, DEFAULT_INLINE_MAX)?);
         let mut assets = HashSet::new();
         for asset in &config.catalog.assets {
             let path = config.catalog.path_of(asset);
@@ -97,6 +105,7 @@ impl Coordinator {
         assets.insert(catalog_blake3.clone());
         let samples = SampleIndex::open(&db)?;
         let scheduler = Arc::new(Scheduler::open(&db, config.catalog.clone(), samples, config.lease_seconds)?);
+        let (durable, sync_rx) = GroupSync::channel();
         let shared = Arc::new(Shared {
             scheduler,
             blobs,
@@ -105,12 +114,13 @@ impl Coordinator {
             heartbeat_seconds: config.heartbeat_seconds,
             assets,
             catalog_blake3,
-            db,
+            durable,
         });
         Ok(Coordinator {
             shared,
             token: config.token,
             tls: config.tls,
+            sync: (sync_rx, db),
         })
     }
 
@@ -140,6 +150,8 @@ impl Coordinator {
                 )),
             }
         };
+        let (sync_rx, db) = self.sync;
+        let flusher = tokio::spawn(GroupSync::run(sync_rx, db.clone(), self.shared.blobs.clone()));
         let shared = self.shared.clone();
         let expiry = tokio::spawn(async move {
             let mut tick = tokio::time::interval(Duration::from_millis(500));
@@ -173,7 +185,9 @@ impl Coordinator {
             .await
             .map_err(|e| CoordError::Storage(format!("gRPC server: {e}")));
         expiry.abort();
-        let _ = self.shared.db.flush_async().await;
+        flusher.abort();
+        let _ = self.shared.blobs.sync();
+        let _ = db.flush();
         result
     }
 }

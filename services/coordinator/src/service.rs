@@ -39,8 +39,9 @@ pub struct Shared {
     pub assets: std::collections::HashSet<String>,
     /// BLAKE3 of the catalog file itself (workers fetch it to resolve ids to files).
     pub catalog_blake3: String,
-    /// Flushed before a commit is acknowledged: an acknowledged sample survives kill -9.
-    pub db: sled::Db,
+    /// Waited on before a commit is acknowledged: an acknowledged sample survives kill -9
+    /// and power loss.
+    pub durable: crate::durability::GroupSync,
 }
 
 pub fn job_to_pb(s: &JobStatus) -> pb::Job {
@@ -231,11 +232,8 @@ impl pb::workers_server::Workers for WorkersService {
         let capacity = req.capacity.clamp(1, 256);
         let cached = (!req.cached_assets.is_empty()).then_some(req.cached_assets);
         let start = std::time::Instant::now();
-        let sched = self.0.scheduler.clone();
-        let worker = req.worker_id.clone();
-        let tasks = tokio::task::spawn_blocking(move || sched.lease(&worker, capacity, cached, now_unix()))
-            .await
-            .map_err(|e| Status::internal(e.to_string()))??;
+        // Microseconds of work under one short lock: a blocking-pool hop would cost more.
+        let tasks = self.0.scheduler.lease(&req.worker_id, capacity, cached, now_unix())?;
         self.0.metrics.lease_latency.observe(start.elapsed().as_secs_f64());
         self.0.metrics.leased.inc_by(tasks.len() as u64);
         let tasks = tasks
@@ -302,13 +300,12 @@ impl pb::workers_server::Workers for WorkersService {
                 header.blake3
             )));
         }
-        let check = {
-            let s = self.0.scheduler.clone();
-            let (w, l, j, i) = (header.worker_id.clone(), header.lease_id.clone(), header.job_id.clone(), header.index);
-            tokio::task::spawn_blocking(move || s.check_upload(&w, &l, &j, i))
-                .await
-                .map_err(|e| Status::internal(e.to_string()))??
-        };
+        let check = self.0.scheduler.check_upload(
+            &header.worker_id,
+            &header.lease_id,
+            &header.job_id,
+            header.index,
+        )?;
         let (split, sample_json) = match check {
             UploadCheck::AlreadyCommitted => {
                 // Drain so the client sees a clean end of stream, then acknowledge.
@@ -344,13 +341,16 @@ impl pb::workers_server::Workers for WorkersService {
             self.0.metrics.rejected_uploads.inc();
             Status::from(CoordError::from(e))
         })?;
-        let metadata = serde_json::json!({
-            "sample": serde_json::from_str::<serde_json::Value>(&sample_json).unwrap_or_default(),
-            "stats": serde_json::from_str::<serde_json::Value>(&header.stats_json).unwrap_or(serde_json::Value::Null),
-            "worker": header.worker_id,
-            "lease": header.lease_id,
-        })
-        .to_string();
+        // The sample JSON is ours (from the spec); the worker's statistics are checked to be
+        // JSON before they are embedded, and replaced by null otherwise.
+        let stats = serde_json::value::RawValue::from_string(header.stats_json.clone())
+            .map(|r| r.get().to_owned())
+            .unwrap_or_else(|_| "null".into());
+        let metadata = format!(
+            r#"{{"sample":{sample_json},"stats":{stats},"worker":{},"lease":{}}}"#,
+            serde_json::Value::String(header.worker_id.clone()),
+            serde_json::Value::String(header.lease_id.clone()),
+        );
         let now = now_unix();
         let outcome = self.0.scheduler.samples().commit(
             &header.job_id,
@@ -368,12 +368,11 @@ impl pb::workers_server::Workers for WorkersService {
             self.0.metrics.duplicate_uploads.inc();
         }
         self.0.scheduler.mark_done(&header.job_id, header.index, now)?;
-        // Concurrent uploads share one fsync (sled coalesces flushes).
         self.0
-            .db
-            .flush_async()
+            .durable
+            .sync()
             .await
-            .map_err(|e| Status::internal(format!("flushing the commit: {e}")))?;
+            .map_err(|e| Status::internal(format!("making the commit durable: {e}")))?;
         Ok(Response::new(pb::UploadSampleResponse { committed, blake3 }))
     }
 
