@@ -142,13 +142,14 @@ pub async fn shutdown_signal() {
     let ctrl_c = tokio::signal::ctrl_c();
     #[cfg(unix)]
     {
-        let mut term = match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(s) => s,
-            Err(_) => {
-                let _ = ctrl_c.await;
-                return;
-            }
-        };
+        let mut term =
+            match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+                Ok(s) => s,
+                Err(_) => {
+                    let _ = ctrl_c.await;
+                    return;
+                }
+            };
         tokio::select! {
             _ = ctrl_c => {}
             _ = term.recv() => {}
@@ -177,14 +178,16 @@ pub fn serve(cmd: Serve) -> Result<()> {
 
 async fn serve_coordinator(a: CoordinatorArgs) -> Result<()> {
     let catalog = load_catalog(&a.catalog)?;
-    let mut config = lightfarm_coordinator::CoordinatorConfig::new(a.data.clone(), a.token.clone(), catalog);
+    let mut config =
+        lightfarm_coordinator::CoordinatorConfig::new(a.data.clone(), a.token.clone(), catalog);
     config.lease_seconds = f64::from(a.lease_seconds.max(1));
     config.heartbeat_seconds = (a.lease_seconds / 4).max(1);
     config.max_upload_bytes = a.max_upload_mb.max(1) << 20;
     config.tls = a.tls_cert.clone().zip(a.tls_key.clone());
-    let coordinator = tokio::task::spawn_blocking(move || lightfarm_coordinator::Coordinator::open(config))
-        .await
-        .context("opening the coordinator")??;
+    let coordinator =
+        tokio::task::spawn_blocking(move || lightfarm_coordinator::Coordinator::open(config))
+            .await
+            .context("opening the coordinator")??;
     let listener = tokio::net::TcpListener::bind(&a.listen)
         .await
         .with_context(|| format!("--listen {}: cannot bind", a.listen))?;
@@ -193,7 +196,10 @@ async fn serve_coordinator(a: CoordinatorArgs) -> Result<()> {
         let ml = tokio::net::TcpListener::bind(&a.metrics_listen)
             .await
             .with_context(|| format!("--metrics-listen {}: cannot bind", a.metrics_listen))?;
-        let (m, s) = (coordinator.metrics().clone(), coordinator.scheduler().clone());
+        let (m, s) = (
+            coordinator.metrics().clone(),
+            coordinator.scheduler().clone(),
+        );
         let mut rx = stop_rx.clone();
         tokio::spawn(async move {
             let stop = async move {
@@ -206,7 +212,10 @@ async fn serve_coordinator(a: CoordinatorArgs) -> Result<()> {
     }
     eprintln!(
         "coordinator: gRPC on {} (data {}), metrics on {}",
-        listener.local_addr().map(|a| a.to_string()).unwrap_or_default(),
+        listener
+            .local_addr()
+            .map(|a| a.to_string())
+            .unwrap_or_default(),
         a.data.display(),
         a.metrics_listen
     );
@@ -249,14 +258,37 @@ async fn serve_worker(a: WorkerArgs) -> Result<()> {
 
 // ------------------------------------------------------------------ clients
 
-async fn jobs_client(c: &Connect) -> Result<pb::jobs_client::JobsClient<tonic::codegen::InterceptedService<tonic::transport::Channel, lightfarm_worker::client::Auth>>> {
-    let (ch, auth) = lightfarm_worker::client::channel(&c.coordinator, &c.token, c.tls_ca.as_deref())?;
+async fn jobs_client(
+    c: &Connect,
+) -> Result<
+    pb::jobs_client::JobsClient<
+        tonic::codegen::InterceptedService<
+            tonic::transport::Channel,
+            lightfarm_worker::client::Auth,
+        >,
+    >,
+> {
+    let (ch, auth) =
+        lightfarm_worker::client::channel(&c.coordinator, &c.token, c.tls_ca.as_deref())?;
     Ok(pb::jobs_client::JobsClient::with_interceptor(ch, auth))
 }
 
-async fn samples_client(c: &Connect) -> Result<pb::samples_client::SamplesClient<tonic::codegen::InterceptedService<tonic::transport::Channel, lightfarm_worker::client::Auth>>> {
-    let (ch, auth) = lightfarm_worker::client::channel(&c.coordinator, &c.token, c.tls_ca.as_deref())?;
-    Ok(pb::samples_client::SamplesClient::with_interceptor(ch, auth).max_decoding_message_size(64 << 20))
+async fn samples_client(
+    c: &Connect,
+) -> Result<
+    pb::samples_client::SamplesClient<
+        tonic::codegen::InterceptedService<
+            tonic::transport::Channel,
+            lightfarm_worker::client::Auth,
+        >,
+    >,
+> {
+    let (ch, auth) =
+        lightfarm_worker::client::channel(&c.coordinator, &c.token, c.tls_ca.as_deref())?;
+    Ok(
+        pb::samples_client::SamplesClient::with_interceptor(ch, auth)
+            .max_decoding_message_size(64 << 20),
+    )
 }
 
 fn status_err(c: &Connect, s: tonic::Status) -> anyhow::Error {
@@ -279,7 +311,8 @@ fn state_name(state: i32) -> &'static str {
 }
 
 pub fn submit(a: SubmitArgs) -> Result<()> {
-    let text = std::fs::read_to_string(&a.spec).with_context(|| format!("reading {}", a.spec.display()))?;
+    let text = std::fs::read_to_string(&a.spec)
+        .with_context(|| format!("reading {}", a.spec.display()))?;
     runtime()?.block_on(async {
         let mut c = jobs_client(&a.connect).await?;
         let job = c
@@ -292,7 +325,10 @@ pub fn submit(a: SubmitArgs) -> Result<()> {
             .with_context(|| format!("submitting {}", a.spec.display()))?
             .into_inner();
         println!("{}", job.id);
-        eprintln!("submitted {} ({} samples); follow it with: lightfarm watch {}", job.id, job.count, job.id);
+        eprintln!(
+            "submitted {} ({} samples); follow it with: lightfarm watch {}",
+            job.id, job.count, job.id
+        );
         Ok(())
     })
 }
@@ -301,13 +337,19 @@ pub fn watch(a: JobArgs) -> Result<()> {
     runtime()?.block_on(async {
         let mut c = jobs_client(&a.connect).await?;
         let mut stream = c
-            .watch_job(pb::JobRef { job_id: a.job.clone() })
+            .watch_job(pb::JobRef {
+                job_id: a.job.clone(),
+            })
             .await
             .map_err(|s| status_err(&a.connect, s))?
             .into_inner();
         let mut bar: Option<ProgressBar> = None;
         let mut last = None;
-        while let Some(job) = stream.message().await.map_err(|s| status_err(&a.connect, s))? {
+        while let Some(job) = stream
+            .message()
+            .await
+            .map_err(|s| status_err(&a.connect, s))?
+        {
             let counts = job.counts.unwrap_or_default();
             let b = bar.get_or_insert_with(|| {
                 let b = ProgressBar::new(job.count);
@@ -322,7 +364,11 @@ pub fn watch(a: JobArgs) -> Result<()> {
             b.set_message(format!(
                 "{:.2} samples/s  eta {}  leased {}  failed {}  [{}]",
                 job.samples_per_second,
-                if job.eta_seconds > 0.0 { format!("{:.0}s", job.eta_seconds) } else { "-".into() },
+                if job.eta_seconds > 0.0 {
+                    format!("{:.0}s", job.eta_seconds)
+                } else {
+                    "-".into()
+                },
                 counts.leased,
                 counts.failed,
                 state_name(job.state)
@@ -332,9 +378,18 @@ pub fn watch(a: JobArgs) -> Result<()> {
         if let Some(b) = bar {
             b.finish();
         }
-        let Some(job) = last else { bail!("the coordinator sent nothing for {}", a.job) };
+        let Some(job) = last else {
+            bail!("the coordinator sent nothing for {}", a.job)
+        };
         let counts = job.counts.unwrap_or_default();
-        println!("{}: {} — {} done, {} failed of {}", job.id, state_name(job.state), counts.done, counts.failed, job.count);
+        println!(
+            "{}: {} — {} done, {} failed of {}",
+            job.id,
+            state_name(job.state),
+            counts.done,
+            counts.failed,
+            job.count
+        );
         for f in &job.failures {
             println!("  sample {} on {}: {}", f.index, f.worker_id, f.reason);
         }
@@ -348,11 +403,28 @@ pub fn watch(a: JobArgs) -> Result<()> {
 pub fn jobs(a: JobsArgs) -> Result<()> {
     runtime()?.block_on(async {
         let mut c = jobs_client(&a.connect).await?;
-        let jobs = c.list_jobs(pb::ListJobsRequest {}).await.map_err(|s| status_err(&a.connect, s))?.into_inner().jobs;
-        println!("{:<28} {:<10} {:>8} {:>8} {:>8} {:>8} {:>8}", "JOB", "STATE", "SAMPLES", "DONE", "LEASED", "FAILED", "PRIO");
+        let jobs = c
+            .list_jobs(pb::ListJobsRequest {})
+            .await
+            .map_err(|s| status_err(&a.connect, s))?
+            .into_inner()
+            .jobs;
+        println!(
+            "{:<28} {:<10} {:>8} {:>8} {:>8} {:>8} {:>8}",
+            "JOB", "STATE", "SAMPLES", "DONE", "LEASED", "FAILED", "PRIO"
+        );
         for j in jobs {
             let c = j.counts.unwrap_or_default();
-            println!("{:<28} {:<10} {:>8} {:>8} {:>8} {:>8} {:>8}", j.id, state_name(j.state), j.count, c.done, c.leased, c.failed, j.priority);
+            println!(
+                "{:<28} {:<10} {:>8} {:>8} {:>8} {:>8} {:>8}",
+                j.id,
+                state_name(j.state),
+                j.count,
+                c.done,
+                c.leased,
+                c.failed,
+                j.priority
+            );
         }
         Ok(())
     })
@@ -361,7 +433,9 @@ pub fn jobs(a: JobsArgs) -> Result<()> {
 pub fn job_action(a: JobArgs, action: &str) -> Result<()> {
     runtime()?.block_on(async {
         let mut c = jobs_client(&a.connect).await?;
-        let r = pb::JobRef { job_id: a.job.clone() };
+        let r = pb::JobRef {
+            job_id: a.job.clone(),
+        };
         let job = match action {
             "cancel" => c.cancel_job(r).await,
             "pause" => c.pause_job(r).await,
@@ -387,9 +461,15 @@ pub fn samples(a: SamplesArgs) -> Result<()> {
             .await
             .map_err(|s| status_err(&a.connect, s))?
             .into_inner();
-        println!("{:<28} {:>8} {:<6} {:>10} BLAKE3", "JOB", "INDEX", "SPLIT", "BYTES");
+        println!(
+            "{:<28} {:>8} {:<6} {:>10} BLAKE3",
+            "JOB", "INDEX", "SPLIT", "BYTES"
+        );
         for s in &r.samples {
-            println!("{:<28} {:>8} {:<6} {:>10} {}", s.job_id, s.index, s.split, s.size, s.blake3);
+            println!(
+                "{:<28} {:>8} {:<6} {:>10} {}",
+                s.job_id, s.index, s.split, s.size, s.blake3
+            );
         }
         eprintln!("{} of {} samples", r.samples.len(), r.total);
         Ok(())
@@ -412,13 +492,17 @@ pub fn export(a: ExportArgs) -> Result<()> {
             .map_err(|s| status_err(&a.connect, s))?
             .into_inner();
         let format = match a.format {
-            Format::Webdataset => lightfarm_store::ExportFormat::WebDataset { samples_per_shard: a.shard_size.max(1) },
+            Format::Webdataset => lightfarm_store::ExportFormat::WebDataset {
+                samples_per_shard: a.shard_size.max(1),
+            },
             Format::Folder => lightfarm_store::ExportFormat::Folder,
         };
         let mut writer = lightfarm_store::ExportWriter::create(&a.out, &a.job, &format)?;
         let bar = ProgressBar::new_spinner();
         let mut current: Option<(pb::SampleInfo, Vec<u8>)> = None;
-        let finish = |w: &mut lightfarm_store::ExportWriter, cur: Option<(pb::SampleInfo, Vec<u8>)>| -> Result<()> {
+        let finish = |w: &mut lightfarm_store::ExportWriter,
+                      cur: Option<(pb::SampleInfo, Vec<u8>)>|
+         -> Result<()> {
             if let Some((info, bytes)) = cur {
                 let record = lightfarm_store::SampleRecord {
                     job_id: info.job_id,
@@ -435,7 +519,11 @@ pub fn export(a: ExportArgs) -> Result<()> {
             }
             Ok(())
         };
-        while let Some(chunk) = stream.message().await.map_err(|s| status_err(&a.connect, s))? {
+        while let Some(chunk) = stream
+            .message()
+            .await
+            .map_err(|s| status_err(&a.connect, s))?
+        {
             match chunk.kind {
                 Some(pb::sample_chunk::Kind::Info(info)) => {
                     finish(&mut writer, current.take())?;
@@ -452,7 +540,13 @@ pub fn export(a: ExportArgs) -> Result<()> {
         finish(&mut writer, current.take())?;
         let report = writer.finish()?;
         bar.finish_and_clear();
-        eprintln!("{}: {} samples, {} files, {} bytes", a.out.display(), report.samples, report.files.len(), report.bytes);
+        eprintln!(
+            "{}: {} samples, {} files, {} bytes",
+            a.out.display(),
+            report.samples,
+            report.files.len(),
+            report.bytes
+        );
         Ok(())
     })
 }

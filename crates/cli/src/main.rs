@@ -1,5 +1,6 @@
 //! `lightfarm`: the command line of the virtual light stage.
 
+mod demo_cmd;
 mod farm_cmd;
 mod preview_cmd;
 mod render_cmd;
@@ -35,6 +36,9 @@ enum Command {
     /// Render a few samples of a dataset spec small and write a labelled contact sheet
     /// (lit0 | lit1 | albedo | normal | normal_lens | mask per sample).
     Preview(Box<preview_cmd::PreviewArgs>),
+    /// The one-machine case: an in-process coordinator and worker render a small dataset from
+    /// the built-in assets, export it and draw a contact sheet (out/demo/).
+    Demo(Box<demo_cmd::DemoArgs>),
     /// Run a service: the coordinator or a render worker.
     #[command(subcommand)]
     Serve(farm_cmd::Serve),
@@ -70,6 +74,7 @@ fn main() {
         Command::Spec(c) => spec_cmd::spec(c),
         Command::Assets(c) => spec_cmd::assets(c),
         Command::Preview(args) => preview_cmd::run(*args),
+        Command::Demo(a) => demo_cmd::run(*a),
         Command::Serve(c) => farm_cmd::serve(c),
         Command::Submit(a) => farm_cmd::submit(a),
         Command::Watch(a) => farm_cmd::watch(a),

@@ -59,7 +59,10 @@ fn caption(s: &SampleSpec) -> String {
 
 pub fn run(args: PreviewArgs) -> Result<()> {
     if args.count == 0 || args.count > 256 {
-        bail!("--count {} must be in 1..=256 (one row per sample)", args.count);
+        bail!(
+            "--count {} must be in 1..=256 (one row per sample)",
+            args.count
+        );
     }
     if args.size == 0 || args.size > 1024 {
         bail!("--size {} must be in 1..=1024 pixels", args.size);
@@ -69,7 +72,11 @@ pub fn run(args: PreviewArgs) -> Result<()> {
     }
     if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         if !dir.is_dir() {
-            bail!("--out {}: the directory {} does not exist", args.out.display(), dir.display());
+            bail!(
+                "--out {}: the directory {} does not exist",
+                args.out.display(),
+                dir.display()
+            );
         }
     }
     let catalog = match &args.catalog {
@@ -77,7 +84,10 @@ pub fn run(args: PreviewArgs) -> Result<()> {
         None => Catalog::builtin()?,
     };
     let spec = DatasetSpec::load(&args.spec)?.validate(&catalog)?;
-    let end = args.start.checked_add(args.count).filter(|e| *e <= spec.count);
+    let end = args
+        .start
+        .checked_add(args.count)
+        .filter(|e| *e <= spec.count);
     let Some(end) = end else {
         bail!(
             "--start {} --count {} runs past the dataset's {} samples",
@@ -91,8 +101,10 @@ pub fn run(args: PreviewArgs) -> Result<()> {
 
     let bar = ProgressBar::new(args.count);
     bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} samples  eta {eta}  {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} samples  eta {eta}  {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let mut sheet = Sheet::new(args.count as u32, args.size, args.size);
     let mut failures = 0;
@@ -132,7 +144,10 @@ pub fn run(args: PreviewArgs) -> Result<()> {
         args.spp
     );
     if failures > 0 {
-        bail!("{failures} of {} samples failed (see above and the red rows of the sheet)", args.count);
+        bail!(
+            "{failures} of {} samples failed (see above and the red rows of the sheet)",
+            args.count
+        );
     }
     Ok(())
 }

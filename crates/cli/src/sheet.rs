@@ -31,7 +31,11 @@ pub fn tiles(out: &RenderOutput) -> Vec<Vec<[u8; 3]>> {
                 let y = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
                 (s + y as f64, w + *m as f64)
             });
-        let exposure = if sum > 0.0 { (0.18 * weight / sum) as f32 } else { 1.0 };
+        let exposure = if sum > 0.0 {
+            (0.18 * weight / sum) as f32
+        } else {
+            1.0
+        };
         tiles.push(
             lit.iter()
                 .map(|p| {

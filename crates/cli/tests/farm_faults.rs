@@ -45,7 +45,12 @@ fn log(dir: &Path, name: &str) -> Stdio {
 fn coordinator(dir: &Path, port: u16, tag: &str) -> Proc {
     Proc(
         Command::new(BIN)
-            .args(["serve", "coordinator", "--listen", &format!("127.0.0.1:{port}")])
+            .args([
+                "serve",
+                "coordinator",
+                "--listen",
+                &format!("127.0.0.1:{port}"),
+            ])
             .args(["--metrics-listen", "off", "--lease-seconds", "4"])
             .arg("--data")
             .arg(dir.join("data"))
@@ -61,7 +66,12 @@ fn coordinator(dir: &Path, port: u16, tag: &str) -> Proc {
 fn worker(dir: &Path, port: u16, name: &str) -> Proc {
     Proc(
         Command::new(BIN)
-            .args(["serve", "worker", "--coordinator", &format!("http://127.0.0.1:{port}")])
+            .args([
+                "serve",
+                "worker",
+                "--coordinator",
+                &format!("http://127.0.0.1:{port}"),
+            ])
             .args(["--name", name])
             .arg("--cache")
             .arg(dir.join(name))
@@ -87,10 +97,18 @@ impl Api {
         }
     }
 
-    fn jobs(&self) -> pb::jobs_client::JobsClient<tonic::codegen::InterceptedService<tonic::transport::Channel, lightfarm_worker::client::Auth>> {
+    fn jobs(
+        &self,
+    ) -> pb::jobs_client::JobsClient<
+        tonic::codegen::InterceptedService<
+            tonic::transport::Channel,
+            lightfarm_worker::client::Auth,
+        >,
+    > {
         // A lazy channel needs the runtime's reactor to exist.
         let _in_runtime = self.rt.enter();
-        let (ch, auth) = lightfarm_worker::client::channel(&self.addr, TOKEN, None).expect("channel");
+        let (ch, auth) =
+            lightfarm_worker::client::channel(&self.addr, TOKEN, None).expect("channel");
         pb::jobs_client::JobsClient::with_interceptor(ch, auth)
     }
 
@@ -98,10 +116,12 @@ impl Api {
     fn submit(&self) -> String {
         let deadline = Instant::now() + Duration::from_secs(60);
         loop {
-            let r = self.rt.block_on(self.jobs().submit_dataset(pb::SubmitDatasetRequest {
-                spec: Some(pb::submit_dataset_request::Spec::Toml(spec())),
-                priority: 0,
-            }));
+            let r = self
+                .rt
+                .block_on(self.jobs().submit_dataset(pb::SubmitDatasetRequest {
+                    spec: Some(pb::submit_dataset_request::Spec::Toml(spec())),
+                    priority: 0,
+                }));
             match r {
                 Ok(job) => return job.into_inner().id,
                 Err(e) if Instant::now() < deadline => {
@@ -123,16 +143,28 @@ impl Api {
 
     fn samples(&self, id: &str) -> Vec<pb::SampleInfo> {
         let _in_runtime = self.rt.enter();
-        let (ch, auth) = lightfarm_worker::client::channel(&self.addr, TOKEN, None).expect("channel");
+        let (ch, auth) =
+            lightfarm_worker::client::channel(&self.addr, TOKEN, None).expect("channel");
         let mut c = pb::samples_client::SamplesClient::with_interceptor(ch, auth);
         self.rt
-            .block_on(c.list_samples(pb::ListSamplesRequest { job_id: id.into(), split: String::new(), offset: 0, limit: 10_000 }))
+            .block_on(c.list_samples(pb::ListSamplesRequest {
+                job_id: id.into(),
+                split: String::new(),
+                offset: 0,
+                limit: 10_000,
+            }))
             .expect("list samples")
             .into_inner()
             .samples
     }
 
-    fn wait_for(&self, id: &str, what: &str, timeout: Duration, mut pred: impl FnMut(&pb::Job) -> bool) -> pb::Job {
+    fn wait_for(
+        &self,
+        id: &str,
+        what: &str,
+        timeout: Duration,
+        mut pred: impl FnMut(&pb::Job) -> bool,
+    ) -> pb::Job {
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(job) = self.job(id) {
@@ -140,7 +172,11 @@ impl Api {
                     return job;
                 }
             }
-            assert!(Instant::now() < deadline, "timed out waiting for {what}: {:?}", self.job(id));
+            assert!(
+                Instant::now() < deadline,
+                "timed out waiting for {what}: {:?}",
+                self.job(id)
+            );
             std::thread::sleep(Duration::from_millis(200));
         }
     }
@@ -156,18 +192,27 @@ fn check_exactly_once_and_bit_identical(api: &Api, job: &str, dir: &Path) -> usi
     let samples = api.samples(job);
     let mut idx: Vec<u64> = samples.iter().map(|s| s.index).collect();
     idx.sort();
-    assert_eq!(idx, (0..COUNT).collect::<Vec<_>>(), "every sample committed exactly once");
+    assert_eq!(
+        idx,
+        (0..COUNT).collect::<Vec<_>>(),
+        "every sample committed exactly once"
+    );
 
     let catalog = lightfarm_scene::Catalog::builtin().expect("catalog");
     let resolved = lightfarm_scene::spec::DatasetSpec::from_toml_str(&spec(), "faults.toml")
         .and_then(|s| s.validate(&catalog))
         .expect("spec");
-    let renderer = lightfarm_render::Renderer::new(&lightfarm_render::vulkan::DeviceRequest::Auto).expect("device");
+    let renderer = lightfarm_render::Renderer::new(&lightfarm_render::vulkan::DeviceRequest::Auto)
+        .expect("device");
     let mut rerendered = 0;
     for s in &samples {
         let meta: serde_json::Value = serde_json::from_str(&s.metadata_json).expect("metadata");
         let lease = meta["lease"].as_str().unwrap_or_default();
-        let attempt: u32 = lease.rsplit('.').next().and_then(|a| a.parse().ok()).unwrap_or(1);
+        let attempt: u32 = lease
+            .rsplit('.')
+            .next()
+            .and_then(|a| a.parse().ok())
+            .unwrap_or(1);
         if attempt < 2 {
             continue;
         }
@@ -175,7 +220,8 @@ fn check_exactly_once_and_bit_identical(api: &Api, job: &str, dir: &Path) -> usi
         let sample = lightfarm_scene::expand::expand(&resolved, s.index).expect("expand");
         let json = lightfarm_scene::expand::expand_json(&resolved, s.index).expect("json");
         let path: PathBuf = dir.join(format!("undisturbed-{}.exr", s.index));
-        lightfarm_worker::render_to_exr(&renderer, &catalog, &sample, &json, &path).expect("render");
+        lightfarm_worker::render_to_exr(&renderer, &catalog, &sample, &json, &path)
+            .expect("render");
         let bytes = std::fs::read(&path).expect("read");
         assert_eq!(
             blake3::hash(&bytes).to_hex().to_string(),
@@ -196,15 +242,22 @@ fn killing_a_worker_mid_render_loses_nothing() {
     let job = api.submit();
     let mut a = worker(dir.path(), port, "wa");
     let _b = worker(dir.path(), port, "wb");
-    api.wait_for(&job, "a few commits", Duration::from_secs(300), |j| done(j) >= 4);
+    api.wait_for(&job, "a few commits", Duration::from_secs(300), |j| {
+        done(j) >= 4
+    });
     // Mid-render: workers lease the next sample as soon as they upload one.
     a.0.kill().expect("kill -9 worker wa");
     let _ = a.0.wait();
     let _c = worker(dir.path(), port, "wc");
-    let end = api.wait_for(&job, "completion", Duration::from_secs(600), |j| j.state != pb::JobState::Running as i32);
+    let end = api.wait_for(&job, "completion", Duration::from_secs(600), |j| {
+        j.state != pb::JobState::Running as i32
+    });
     assert_eq!(end.state, pb::JobState::Completed as i32, "{end:?}");
     let rerendered = check_exactly_once_and_bit_identical(&api, &job, dir.path());
-    assert!(rerendered >= 1, "the killed worker's sample was re-leased and re-rendered");
+    assert!(
+        rerendered >= 1,
+        "the killed worker's sample was re-leased and re-rendered"
+    );
 }
 
 #[test]
@@ -216,18 +269,34 @@ fn killing_the_coordinator_mid_job_loses_nothing() {
     let job = api.submit();
     let _a = worker(dir.path(), port, "wa");
     let _b = worker(dir.path(), port, "wb");
-    api.wait_for(&job, "some commits", Duration::from_secs(300), |j| done(j) >= 8);
-    let before: Vec<(u64, String)> = api.samples(&job).into_iter().map(|s| (s.index, s.blake3)).collect();
+    api.wait_for(&job, "some commits", Duration::from_secs(300), |j| {
+        done(j) >= 8
+    });
+    let before: Vec<(u64, String)> = api
+        .samples(&job)
+        .into_iter()
+        .map(|s| (s.index, s.blake3))
+        .collect();
     coord.0.kill().expect("kill -9 coordinator");
     let _ = coord.0.wait();
     // Workers keep rendering into their outboxes while it is down.
     std::thread::sleep(Duration::from_secs(3));
     let _coord2 = coordinator(dir.path(), port, "coordinator-restarted");
-    let end = api.wait_for(&job, "completion", Duration::from_secs(600), |j| j.state != pb::JobState::Running as i32);
+    let end = api.wait_for(&job, "completion", Duration::from_secs(600), |j| {
+        j.state != pb::JobState::Running as i32
+    });
     assert_eq!(end.state, pb::JobState::Completed as i32, "{end:?}");
-    let after: std::collections::HashMap<u64, String> = api.samples(&job).into_iter().map(|s| (s.index, s.blake3)).collect();
+    let after: std::collections::HashMap<u64, String> = api
+        .samples(&job)
+        .into_iter()
+        .map(|s| (s.index, s.blake3))
+        .collect();
     for (index, hash) in before {
-        assert_eq!(after.get(&index), Some(&hash), "sample {index} committed before the crash is kept as it was");
+        assert_eq!(
+            after.get(&index),
+            Some(&hash),
+            "sample {index} committed before the crash is kept as it was"
+        );
     }
     check_exactly_once_and_bit_identical(&api, &job, dir.path());
 }

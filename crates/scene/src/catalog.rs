@@ -473,7 +473,7 @@ fn validate_asset(i: usize, asset: &mut Asset) -> Result<(), KeyError> {
     }
     if let Some(frame) = &asset.frame {
         let finite = frame.translate.iter().all(|v| v.is_finite());
-        if !(frame.scale.is_finite() && frame.scale > 0.0) || !finite {
+        if !(frame.scale.is_finite() && frame.scale > 0.0 && finite) {
             return Err((
                 key("frame"),
                 format!(
@@ -488,19 +488,31 @@ fn validate_asset(i: usize, asset: &mut Asset) -> Result<(), KeyError> {
         if asset.kind != AssetKind::Head {
             return Err((
                 key("landmarks"),
-                format!("only heads have landmarks, this asset is a {}: remove the key", asset.kind),
+                format!(
+                    "only heads have landmarks, this asset is a {}: remove the key",
+                    asset.kind
+                ),
             ));
         }
-        if let Some(unknown) = landmarks.keys().find(|k| !LANDMARK_NAMES.contains(&k.as_str())) {
+        if let Some(unknown) = landmarks
+            .keys()
+            .find(|k| !LANDMARK_NAMES.contains(&k.as_str()))
+        {
             return Err((
                 key("landmarks"),
-                format!("unknown landmark `{unknown}`: give exactly {}", LANDMARK_NAMES.join(", ")),
+                format!(
+                    "unknown landmark `{unknown}`: give exactly {}",
+                    LANDMARK_NAMES.join(", ")
+                ),
             ));
         }
         if let Some(missing) = LANDMARK_NAMES.iter().find(|n| !landmarks.contains_key(**n)) {
             return Err((
                 key("landmarks"),
-                format!("`{missing}` is missing: give all of {}", LANDMARK_NAMES.join(", ")),
+                format!(
+                    "`{missing}` is missing: give all of {}",
+                    LANDMARK_NAMES.join(", ")
+                ),
             ));
         }
         if landmarks.values().flatten().any(|v| !v.is_finite()) {

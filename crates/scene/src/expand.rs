@@ -562,32 +562,6 @@ fn sample_lighting(spec: &ResolvedSpec, rng: &mut SampleRng) -> Option<[Lighting
     Some([light(first)?, light(second)?])
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::spec::HAIR_STYLES;
-
-    #[test]
-    fn tables_are_complete() {
-        assert_eq!(ARKIT_BLENDSHAPES.len(), 52);
-        let mut names = ARKIT_BLENDSHAPES.to_vec();
-        names.sort_unstable();
-        names.dedup();
-        assert_eq!(names.len(), 52, "duplicate ARKit name");
-        for (_, shapes) in EXPRESSIONS {
-            for s in shapes {
-                assert!(ARKIT_BLENDSHAPES.contains(s), "{s} is not an ARKit name");
-            }
-        }
-        for style in HAIR_STYLES {
-            assert!(
-                HAIR_RANGES.iter().any(|r| r.style == style),
-                "no ranges for {style}"
-            );
-        }
-    }
-}
-
 /// Every catalog asset rendering `sample` reads: its head, garment (and the head whose body the
 /// garment was fitted to, which its placement measures), glasses, headset and both HDRIs. A
 /// worker fetches exactly these; an id the catalog lacks is an error naming it.
@@ -618,4 +592,30 @@ pub fn required_assets<'a>(
     out.sort_by(|a, b| a.id.cmp(&b.id));
     out.dedup_by(|a, b| a.id == b.id);
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spec::HAIR_STYLES;
+
+    #[test]
+    fn tables_are_complete() {
+        assert_eq!(ARKIT_BLENDSHAPES.len(), 52);
+        let mut names = ARKIT_BLENDSHAPES.to_vec();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), 52, "duplicate ARKit name");
+        for (_, shapes) in EXPRESSIONS {
+            for s in shapes {
+                assert!(ARKIT_BLENDSHAPES.contains(s), "{s} is not an ARKit name");
+            }
+        }
+        for style in HAIR_STYLES {
+            assert!(
+                HAIR_RANGES.iter().any(|r| r.style == style),
+                "no ranges for {style}"
+            );
+        }
+    }
 }

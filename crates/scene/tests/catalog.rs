@@ -300,7 +300,9 @@ fn frame_and_landmark_errors_name_the_key() {
     // A complete, valid pair loads.
     let ok = load(
         "frame-ok",
-        head() + "frame = { scale = 0.05, translate = [0.0, -0.04, 0.0] }\n" + &format!("landmarks = {{ {all} }}\n"),
+        head()
+            + "frame = { scale = 0.05, translate = [0.0, -0.04, 0.0] }\n"
+            + &format!("landmarks = {{ {all} }}\n"),
     )
     .unwrap_or_else(|e| panic!("valid frame/landmarks: {e}"));
     let a = &ok.assets[0];
@@ -311,20 +313,29 @@ fn frame_and_landmark_errors_name_the_key() {
         ("scale0", "frame = { scale = 0.0 }\n".to_string()),
         ("scaleneg", "frame = { scale = -1.0 }\n".to_string()),
         ("scalenan", "frame = { scale = nan }\n".to_string()),
-        ("transinf", "frame = { scale = 1.0, translate = [inf, 0.0, 0.0] }\n".to_string()),
+        (
+            "transinf",
+            "frame = { scale = 1.0, translate = [inf, 0.0, 0.0] }\n".to_string(),
+        ),
     ] {
         let reason = expect_invalid(load(name, head() + &extra), "asset[0].frame");
         assert!(reason.contains("positive"), "{name}: {reason}");
     }
     let missing = all.replace("crown = [0.0, 0.15, 0.0]", "nose_tip = [0.0, 0.0, 0.1]");
     let reason = expect_invalid(
-        load("lm-unknown", head() + &format!("landmarks = {{ {missing} }}\n")),
+        load(
+            "lm-unknown",
+            head() + &format!("landmarks = {{ {missing} }}\n"),
+        ),
         "asset[0].landmarks",
     );
     assert!(reason.contains("nose_tip"), "{reason}");
     let short = all.replace(", crown = [0.0, 0.15, 0.0]", "");
     let reason = expect_invalid(
-        load("lm-missing", head() + &format!("landmarks = {{ {short} }}\n")),
+        load(
+            "lm-missing",
+            head() + &format!("landmarks = {{ {short} }}\n"),
+        ),
         "asset[0].landmarks",
     );
     assert!(reason.contains("crown"), "{reason}");
@@ -337,5 +348,8 @@ fn frame_and_landmark_errors_name_the_key() {
     );
     assert!(reason.contains("only heads"), "{reason}");
     // A frame key that is not scale/translate is a typo, not ignored.
-    expect_invalid(load("frame-typo", head() + "frame = { scael = 1.0 }\n"), "asset[0]");
+    expect_invalid(
+        load("frame-typo", head() + "frame = { scael = 1.0 }\n"),
+        "asset[0]",
+    );
 }

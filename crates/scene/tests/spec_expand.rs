@@ -242,13 +242,26 @@ fn distributions_over_ten_thousand_samples() {
     // Heads without morph targets (the scan, the ICT heads) are always neutral; the others
     // are neutral with probability 1 - expression_probability = 0.3.
     let no_morphs = ["lee_perry_smith", "ict_seed7_1", "ict_seed7_2"];
-    let rigid = samples.iter().filter(|s| no_morphs.contains(&s.head.id.as_str())).count();
-    for s in samples.iter().filter(|s| no_morphs.contains(&s.head.id.as_str())) {
-        assert_eq!(s.head.expression.name, "neutral", "sample {}: {} has no morphs", s.index, s.head.id);
+    let rigid = samples
+        .iter()
+        .filter(|s| no_morphs.contains(&s.head.id.as_str()))
+        .count();
+    for s in samples
+        .iter()
+        .filter(|s| no_morphs.contains(&s.head.id.as_str()))
+    {
+        assert_eq!(
+            s.head.expression.name, "neutral",
+            "sample {}: {} has no morphs",
+            s.index, s.head.id
+        );
     }
     let expected = (rigid as f64 + 0.3 * (N as f64 - rigid as f64)) / N as f64;
     let neutral = expressions.get("neutral").copied().unwrap_or(0) as f64 / N as f64;
-    assert!((neutral - expected).abs() <= 0.015, "neutral rate {neutral}, expected {expected}");
+    assert!(
+        (neutral - expected).abs() <= 0.015,
+        "neutral rate {neutral}, expected {expected}"
+    );
 
     for s in &samples {
         assert_ne!(

@@ -41,7 +41,11 @@ impl DiskBlobStore {
     /// without fsyncs, and durability comes from calling [`BlobStore::sync`] (which syncs the
     /// whole file system once) before acknowledging. After a process crash (kill -9) both
     /// modes keep every finished blob; they differ only on power loss before the sync.
-    pub fn open_with(root: &Path, max_blob_bytes: u64, deferred_sync: bool) -> Result<Self, StoreError> {
+    pub fn open_with(
+        root: &Path,
+        max_blob_bytes: u64,
+        deferred_sync: bool,
+    ) -> Result<Self, StoreError> {
         let tmp = root.join(TMP_DIR);
         fs::create_dir_all(&tmp).map_err(|e| StoreError::io(&tmp, e))?;
         let mut removed = 0usize;

@@ -333,7 +333,11 @@ pub struct ExportWriter {
 impl ExportWriter {
     /// Prepares `out` for an export of `job_id`: refuses a non-empty directory that does not
     /// hold an earlier export of the same job, and marks it as this job's.
-    pub fn create(out: &Path, job_id: &str, format: &ExportFormat) -> Result<ExportWriter, StoreError> {
+    pub fn create(
+        out: &Path,
+        job_id: &str,
+        format: &ExportFormat,
+    ) -> Result<ExportWriter, StoreError> {
         if let ExportFormat::WebDataset { samples_per_shard } = format {
             if *samples_per_shard == 0 {
                 return Err(export_err("samples_per_shard must be at least 1"));

@@ -117,9 +117,18 @@ impl BlobWriter for TieredWriter {
         self.tally.written()
     }
 
-    fn finish(self: Box<Self>, expected_size: u64, expected_blake3: &str) -> Result<Hash, StoreError> {
+    fn finish(
+        self: Box<Self>,
+        expected_size: u64,
+        expected_blake3: &str,
+    ) -> Result<Hash, StoreError> {
         let hash = self.tally.verify(expected_size, expected_blake3)?;
-        let TieredWriter { store, buf, spilled, .. } = *self;
+        let TieredWriter {
+            store,
+            buf,
+            spilled,
+            ..
+        } = *self;
         match spilled {
             Some(w) => w.finish(expected_size, &hash),
             None => {

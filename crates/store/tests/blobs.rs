@@ -4,7 +4,9 @@
 use std::io::Read;
 use std::path::PathBuf;
 
-use lightfarm_store::{hash_hex, is_hash, BlobStore, DiskBlobStore, MemoryBlobStore, StoreError, TieredBlobStore};
+use lightfarm_store::{
+    hash_hex, is_hash, BlobStore, DiskBlobStore, MemoryBlobStore, StoreError, TieredBlobStore,
+};
 
 const LIMIT: u64 = 1 << 20;
 
@@ -68,10 +70,17 @@ struct Tiered {
 impl Tiered {
     fn new() -> Self {
         let dir = tempfile::tempdir().expect("tempdir");
-        let db = sled::Config::new().path(dir.path().join("db")).open().expect("db");
+        let db = sled::Config::new()
+            .path(dir.path().join("db"))
+            .open()
+            .expect("db");
         let disk = DiskBlobStore::open(&dir.path().join("blobs"), LIMIT).expect("open");
         let store = TieredBlobStore::open(&db, disk, 1000).expect("tiered");
-        Tiered { _dir: dir, _db: db, store }
+        Tiered {
+            _dir: dir,
+            _db: db,
+            store,
+        }
     }
 }
 

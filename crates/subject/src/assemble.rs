@@ -91,10 +91,11 @@ pub fn append_scene(dst: &mut Scene, src: &Scene, transform: Mat4) {
             &mut m.base_color_texture,
             &mut m.metallic_roughness_texture,
             &mut m.normal_texture,
-        ] {
-            if let Some(t) = t {
-                *t += texture_base;
-            }
+        ]
+        .into_iter()
+        .flatten()
+        {
+            *t += texture_base;
         }
         m
     }));
@@ -105,11 +106,14 @@ pub fn append_scene(dst: &mut Scene, src: &Scene, transform: Mat4) {
         }
         mesh
     }));
-    dst.instances
-        .extend(src.instances.iter().map(|i| lightfarm_render::scene::Instance {
-            mesh: i.mesh + mesh_base,
-            transform: transform * i.transform,
-        }));
+    dst.instances.extend(
+        src.instances
+            .iter()
+            .map(|i| lightfarm_render::scene::Instance {
+                mesh: i.mesh + mesh_base,
+                transform: transform * i.transform,
+            }),
+    );
 }
 
 /// The camera of a sample: on a sphere of `radius_m` about the world origin at the sampled
@@ -277,12 +281,13 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
         append_scene(&mut parts, &garment, Mat4::IDENTITY);
     }
 
-    let strands = grow_hair(&head.surface, &lm, &sample.hair, sample.hair.seed).map_err(|reason| {
-        SubjectError::Asset {
-            asset: format!("hair ({} on {})", sample.hair.style, head.id),
-            reason,
-        }
-    })?;
+    let strands =
+        grow_hair(&head.surface, &lm, &sample.hair, sample.hair.seed).map_err(|reason| {
+            SubjectError::Asset {
+                asset: format!("hair ({} on {})", sample.hair.style, head.id),
+                reason,
+            }
+        })?;
     let brows = grow_eyebrows(&head.surface, &lm, sample.hair.seed ^ 0x9E37_79B9_7F4A_7C15);
     stats.hair_strands = strands.strand_count();
     stats.eyebrow_strands = brows.strand_count();
@@ -351,9 +356,16 @@ fn garment_fitted_body(catalog: &Catalog, garment: &Asset) -> Result<(Body, Vec3
     let head_asset = catalog
         .get(body)
         .filter(|a| a.kind == AssetKind::Head)
-        .ok_or_else(|| err(format!("tag fitted_to = {body:?} is not a head in the catalog")))?;
+        .ok_or_else(|| {
+            err(format!(
+                "tag fitted_to = {body:?} is not a head in the catalog"
+            ))
+        })?;
     let head = Head::load(head_asset, &catalog.path_of(head_asset), &BTreeMap::new())?;
-    let measured = Body::measure(&head.surface, &head.landmarks)
-        .ok_or_else(|| err(format!("its body {body} has no neck 1.5-8 cm below the chin")))?;
+    let measured = Body::measure(&head.surface, &head.landmarks).ok_or_else(|| {
+        err(format!(
+            "its body {body} has no neck 1.5-8 cm below the chin"
+        ))
+    })?;
     Ok((measured, head.landmarks.eye_centre()))
 }

@@ -151,7 +151,8 @@ impl GarmentFit {
 
     /// Horizontal scale at height `y` (garment space).
     pub fn scale_at(&self, y: f32) -> f32 {
-        let t = ((self.from.y - y) / (NECK_ABOVE_SHOULDERS_M + SHOULDER_BELOW_LINE_M)).clamp(0.0, 1.0);
+        let t =
+            ((self.from.y - y) / (NECK_ABOVE_SHOULDERS_M + SHOULDER_BELOW_LINE_M)).clamp(0.0, 1.0);
         self.neck_scale + (self.shoulder_scale - self.neck_scale) * t
     }
 
@@ -172,7 +173,9 @@ impl GarmentFit {
             };
             let mut mesh = mesh.clone();
             for p in mesh.positions.iter_mut() {
-                *p = self.apply(inst.transform.transform_point3(Vec3::from(*p))).to_array();
+                *p = self
+                    .apply(inst.transform.transform_point3(Vec3::from(*p)))
+                    .to_array();
             }
             mesh.morph_targets.clear();
             mesh.recompute_normals();
@@ -249,7 +252,7 @@ impl CoverMap {
 
     fn bin(&self, p: Vec3) -> Option<usize> {
         let row = ((p.y - self.y0) / HEIGHT_BIN_M).floor();
-        if !(row >= 0.0) {
+        if row.is_nan() || row < 0.0 {
             return None;
         }
         let row = row as usize;

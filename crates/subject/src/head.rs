@@ -75,9 +75,9 @@ impl Head {
             }
         }
         if let Some(frame) = &asset.frame {
-            let to_canonical = Mat4::from_translation(Vec3::from_array(
-                frame.translate.map(|v| v as f32),
-            )) * Mat4::from_scale(Vec3::splat(frame.scale as f32));
+            let to_canonical =
+                Mat4::from_translation(Vec3::from_array(frame.translate.map(|v| v as f32)))
+                    * Mat4::from_scale(Vec3::splat(frame.scale as f32));
             for inst in scene.instances.iter_mut() {
                 inst.transform = to_canonical * inst.transform;
             }
@@ -188,19 +188,21 @@ pub fn detect_landmarks(scene: &Scene, skin: &HeadSurface) -> Result<Landmarks, 
         }
     }
     let centre = |side: f32| -> Option<Vec3> {
-        let (lo, hi) = eyes
-            .iter()
-            .filter(|p| p.x * side > 0.0)
-            .fold(None, |acc: Option<(Vec3, Vec3)>, p| match acc {
+        let (lo, hi) = eyes.iter().filter(|p| p.x * side > 0.0).fold(
+            None,
+            |acc: Option<(Vec3, Vec3)>, p| match acc {
                 None => Some((*p, *p)),
                 Some((lo, hi)) => Some((lo.min(*p), hi.max(*p))),
-            })?;
+            },
+        )?;
         Some((lo + hi) * 0.5)
     };
     let (Some(eye_left), Some(eye_right)) = (centre(1.0), centre(-1.0)) else {
-        return Err("no eye meshes on both sides (materials named sclera/eyes/eyeball/cornea/iris): \
+        return Err(
+            "no eye meshes on both sides (materials named sclera/eyes/eyeball/cornea/iris): \
                     give the head a `landmarks` table in the catalog"
-            .into());
+                .into(),
+        );
     };
     let eye_y = (eye_left.y + eye_right.y) * 0.5;
     let eye_z = (eye_left.z + eye_right.z) * 0.5;
@@ -208,7 +210,8 @@ pub fn detect_landmarks(scene: &Scene, skin: &HeadSurface) -> Result<Landmarks, 
 
     // The ear attachment lies 5.5-13.5 cm behind the eyeball centres on every head here; the
     // widest skin point at eye height within that slab is where a temple arm rests.
-    let in_ear_band = |p: &&Vec3| (p.y - eye_y).abs() < 0.03 && p.z < eye_z - 0.055 && p.z > eye_z - 0.135;
+    let in_ear_band =
+        |p: &&Vec3| (p.y - eye_y).abs() < 0.03 && p.z < eye_z - 0.055 && p.z > eye_z - 0.135;
     let ear_left = pts
         .iter()
         .filter(in_ear_band)

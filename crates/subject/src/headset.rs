@@ -28,7 +28,7 @@ pub fn fit_headset(scene: &Scene, lm: &Landmarks) -> Result<Mat4, String> {
         }
     }
     let half_width = points.iter().map(|p| p.x.abs()).fold(0.0, f32::max);
-    if !(half_width > 0.0) {
+    if half_width.is_nan() || half_width <= 0.0 {
         return Err("the headset has no geometry".into());
     }
     // The lower 55% of the model: the headband's ends also reach far out, higher up.

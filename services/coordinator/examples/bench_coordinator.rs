@@ -27,13 +27,17 @@ fn authed<T>(msg: T) -> Request<T> {
 
 #[tokio::main(flavor = "multi_thread")]
 async fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<u64> = std::env::args().skip(1).filter_map(|a| a.parse().ok()).collect();
+    let args: Vec<u64> = std::env::args()
+        .skip(1)
+        .filter_map(|a| a.parse().ok())
+        .collect();
     let workers = args.first().copied().unwrap_or(200);
     let tasks = args.get(1).copied().unwrap_or(20_000);
     let capacity = args.get(2).copied().unwrap_or(4) as u32;
 
     let dir = tempfile::tempdir()?;
-    let mut config = CoordinatorConfig::new(dir.path().join("data"), TOKEN.into(), Catalog::builtin()?);
+    let mut config =
+        CoordinatorConfig::new(dir.path().join("data"), TOKEN.into(), Catalog::builtin()?);
     config.lease_seconds = 600.0;
     let coordinator = tokio::task::spawn_blocking(move || Coordinator::open(config)).await??;
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
@@ -43,7 +47,9 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
         let _ = stop_rx.await;
     }));
 
-    let channel = tonic::transport::Endpoint::from_shared(addr.clone())?.connect().await?;
+    let channel = tonic::transport::Endpoint::from_shared(addr.clone())?
+        .connect()
+        .await?;
     let mut jobs = pb::jobs_client::JobsClient::new(channel.clone());
     let spec = format!("name = \"bench\"\ncount = {tasks}\nwidth = 8\nheight = 8\nspp = 1\n");
     let t = Instant::now();
@@ -54,7 +60,11 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
         }))
         .await?
         .into_inner();
-    eprintln!("submitted {} tasks in {:.2} s", tasks, t.elapsed().as_secs_f64());
+    eprintln!(
+        "submitted {} tasks in {:.2} s",
+        tasks,
+        t.elapsed().as_secs_f64()
+    );
 
     // Reference: plain unary calls on the same server, same concurrency.
     let calls = 20_000u64;
@@ -84,11 +94,18 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
         let committed = committed.clone();
         handles.push(tokio::spawn(async move {
             let name = format!("sim-{w}");
-            c.register_worker(authed(pb::RegisterWorkerRequest { name: name.clone(), ..Default::default() }))
-                .await?;
+            c.register_worker(authed(pb::RegisterWorkerRequest {
+                name: name.clone(),
+                ..Default::default()
+            }))
+            .await?;
             loop {
                 let leased = c
-                    .lease_tasks(authed(pb::LeaseTasksRequest { worker_id: name.clone(), capacity, cached_assets: vec![] }))
+                    .lease_tasks(authed(pb::LeaseTasksRequest {
+                        worker_id: name.clone(),
+                        capacity,
+                        cached_assets: vec![],
+                    }))
                     .await?
                     .into_inner()
                     .tasks;
@@ -107,10 +124,17 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
                         stats_json: "{}".into(),
                     };
                     let msgs = vec![
-                        pb::UploadChunk { kind: Some(pb::upload_chunk::Kind::Header(header)) },
-                        pb::UploadChunk { kind: Some(pb::upload_chunk::Kind::Data(body)) },
+                        pb::UploadChunk {
+                            kind: Some(pb::upload_chunk::Kind::Header(header)),
+                        },
+                        pb::UploadChunk {
+                            kind: Some(pb::upload_chunk::Kind::Data(body)),
+                        },
                     ];
-                    let r = c.upload_sample(authed(tokio_stream::iter(msgs))).await?.into_inner();
+                    let r = c
+                        .upload_sample(authed(tokio_stream::iter(msgs)))
+                        .await?
+                        .into_inner();
                     if r.committed {
                         committed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                     }
@@ -123,15 +147,29 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let seconds = t.elapsed().as_secs_f64();
     let done = committed.load(std::sync::atomic::Ordering::Relaxed);
-    let final_job = jobs.get_job(authed(pb::JobRef { job_id: job.id.clone() })).await?.into_inner();
+    let final_job = jobs
+        .get_job(authed(pb::JobRef {
+            job_id: job.id.clone(),
+        }))
+        .await?
+        .into_inner();
     let _ = stop_tx.send(());
     server.await??;
 
     let rate = done as f64 / seconds;
-    println!("workers {workers}, capacity {capacity}, tasks {tasks}: committed {done} in {seconds:.2} s");
-    println!("lease+commit: {rate:.0} tasks/s  (target 5000: {:.2}x)", rate / 5000.0);
+    println!(
+        "workers {workers}, capacity {capacity}, tasks {tasks}: committed {done} in {seconds:.2} s"
+    );
+    println!(
+        "lease+commit: {rate:.0} tasks/s  (target 5000: {:.2}x)",
+        rate / 5000.0
+    );
     println!("reference, unary GetJob on the same server: {unary_rate:.0} calls/s  (tasks/s per call/s: {:.3})", rate / unary_rate);
-    println!("job state {:?}, counts {:?}", pb::JobState::try_from(final_job.state), final_job.counts);
+    println!(
+        "job state {:?}, counts {:?}",
+        pb::JobState::try_from(final_job.state),
+        final_job.counts
+    );
     if done != tasks {
         return Err(format!("{done} of {tasks} tasks committed").into());
     }

@@ -33,7 +33,11 @@ impl GroupSync {
 
     /// Serves sync requests until every handle is gone; also syncs once a second so leases
     /// and heartbeats reach the disk without an upload.
-    pub async fn run(mut rx: mpsc::UnboundedReceiver<Waiter>, db: sled::Db, blobs: Arc<dyn BlobStore>) {
+    pub async fn run(
+        mut rx: mpsc::UnboundedReceiver<Waiter>,
+        db: sled::Db,
+        blobs: Arc<dyn BlobStore>,
+    ) {
         let mut tick = tokio::time::interval(Duration::from_secs(1));
         loop {
             let mut waiters: Vec<Waiter> = Vec::new();

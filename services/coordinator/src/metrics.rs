@@ -25,13 +25,17 @@ pub struct Metrics {
 // invalid or duplicate name, a programming error caught by the first test run.
 fn counter(registry: &Registry, name: &str, help: &str) -> IntCounter {
     let c = IntCounter::new(name, help).expect("valid static metric name");
-    registry.register(Box::new(c.clone())).expect("unique metric name");
+    registry
+        .register(Box::new(c.clone()))
+        .expect("unique metric name");
     c
 }
 
 fn gauge(registry: &Registry, name: &str, help: &str) -> IntGauge {
     let g = IntGauge::new(name, help).expect("valid static metric name");
-    registry.register(Box::new(g.clone())).expect("unique metric name");
+    registry
+        .register(Box::new(g.clone()))
+        .expect("unique metric name");
     g
 }
 
@@ -39,20 +43,51 @@ impl Metrics {
     pub fn new() -> Metrics {
         let registry = Registry::new();
         let lease_latency = Histogram::with_opts(
-            HistogramOpts::new("lightfarm_lease_seconds", "LeaseTasks handling time")
-                .buckets(vec![0.0001, 0.0005, 0.001, 0.005, 0.01, 0.05, 0.1, 0.5, 1.0]),
+            HistogramOpts::new("lightfarm_lease_seconds", "LeaseTasks handling time").buckets(
+                vec![0.0001, 0.0005, 0.001, 0.005, 0.01, 0.05, 0.1, 0.5, 1.0],
+            ),
         )
         .expect("valid static histogram");
-        registry.register(Box::new(lease_latency.clone())).expect("unique metric name");
+        registry
+            .register(Box::new(lease_latency.clone()))
+            .expect("unique metric name");
         Metrics {
-            leased: counter(&registry, "lightfarm_tasks_leased_total", "Tasks handed to workers"),
-            committed: counter(&registry, "lightfarm_samples_committed_total", "Samples committed"),
-            duplicate_uploads: counter(&registry, "lightfarm_duplicate_uploads_total", "Uploads of already committed samples (acknowledged, not stored)"),
-            rejected_uploads: counter(&registry, "lightfarm_rejected_uploads_total", "Uploads refused (too large, checksum mismatch)"),
-            task_failures: counter(&registry, "lightfarm_task_failures_total", "FailTask reports"),
-            expired_leases: counter(&registry, "lightfarm_expired_leases_total", "Leases that ran out and were requeued"),
+            leased: counter(
+                &registry,
+                "lightfarm_tasks_leased_total",
+                "Tasks handed to workers",
+            ),
+            committed: counter(
+                &registry,
+                "lightfarm_samples_committed_total",
+                "Samples committed",
+            ),
+            duplicate_uploads: counter(
+                &registry,
+                "lightfarm_duplicate_uploads_total",
+                "Uploads of already committed samples (acknowledged, not stored)",
+            ),
+            rejected_uploads: counter(
+                &registry,
+                "lightfarm_rejected_uploads_total",
+                "Uploads refused (too large, checksum mismatch)",
+            ),
+            task_failures: counter(
+                &registry,
+                "lightfarm_task_failures_total",
+                "FailTask reports",
+            ),
+            expired_leases: counter(
+                &registry,
+                "lightfarm_expired_leases_total",
+                "Leases that ran out and were requeued",
+            ),
             lease_latency,
-            queued: gauge(&registry, "lightfarm_tasks_queued", "Tasks waiting for a worker"),
+            queued: gauge(
+                &registry,
+                "lightfarm_tasks_queued",
+                "Tasks waiting for a worker",
+            ),
             leased_now: gauge(&registry, "lightfarm_tasks_leased", "Tasks being rendered"),
             done: gauge(&registry, "lightfarm_tasks_done", "Tasks committed"),
             failed: gauge(&registry, "lightfarm_tasks_failed", "Tasks failed for good"),
@@ -94,5 +129,7 @@ pub async fn serve_metrics(
             async move { m.render(&s) }
         }),
     );
-    axum::serve(listener, app).with_graceful_shutdown(shutdown).await
+    axum::serve(listener, app)
+        .with_graceful_shutdown(shutdown)
+        .await
 }

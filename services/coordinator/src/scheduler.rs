@@ -226,7 +226,8 @@ fn ms(t: f64) -> u64 {
 /// The sample as one-line JSON (what tasks carry and the index stores; `lightfarm spec expand`
 /// prints the same content pretty).
 fn compact_json(sample: &SampleSpec) -> Result<String, CoordError> {
-    serde_json::to_string(sample).map_err(|e| CoordError::BadSpec(format!("sample {}: {e}", sample.index)))
+    serde_json::to_string(sample)
+        .map_err(|e| CoordError::BadSpec(format!("sample {}: {e}", sample.index)))
 }
 
 fn sled_err(e: sled::Error) -> CoordError {
@@ -329,15 +330,21 @@ impl Scheduler {
 
     fn recover(&self) -> Result<(), CoordError> {
         let mut inner = self.lock();
+        let mut stale: Vec<Vec<u8>> = Vec::new();
         for item in self.jobs_tree.iter() {
             let (_, v) = item.map_err(sled_err)?;
             let rec: JobRecord = serde_json::from_slice(&v).map_err(json_err)?;
             inner.next_seq = inner.next_seq.max(rec.seq + 1);
             let mut job = self.build_job(rec)?;
             let id = job.rec.id.clone();
-            for item in self.tasks_tree.scan_prefix(task_key(&id, 0).split_at(id.len() + 1).0) {
+            for item in self
+                .tasks_tree
+                .scan_prefix(task_key(&id, 0).split_at(id.len() + 1).0)
+            {
                 let (k, v) = item.map_err(sled_err)?;
-                let Some(ix) = k.get(id.len() + 1..).and_then(|b| <[u8; 8]>::try_from(b).ok())
+                let Some(ix) = k
+                    .get(id.len() + 1..)
+                    .and_then(|b| <[u8; 8]>::try_from(b).ok())
                 else {
                     continue;
                 };
@@ -345,9 +352,15 @@ impl Scheduler {
                 job.tasks.insert(u64::from_be_bytes(ix), task);
             }
             for index in 0..job.rec.count {
-                if self.samples.is_committed(&id, index).map_err(CoordError::from)? {
+                if self
+                    .samples
+                    .is_committed(&id, index)
+                    .map_err(CoordError::from)?
+                {
                     job.done += 1;
-                    job.tasks.remove(&index);
+                    if job.tasks.remove(&index).is_some() {
+                        stale.push(task_key(&id, index));
+                    }
                     continue;
                 }
                 match job.tasks.get(&index) {
@@ -368,6 +381,12 @@ impl Scheduler {
             tracing::info!(job = %id, queued = job.queued.len(), leased = job.leased, done = job.done, failed = job.failed, "recovered job");
             inner.jobs.insert(id, job);
         }
+        drop(inner);
+        let mut batch = sled::Batch::default();
+        for key in stale {
+            batch.remove(key);
+        }
+        self.tasks_tree.apply_batch(batch).map_err(sled_err)?;
         Ok(())
     }
 
@@ -379,7 +398,12 @@ impl Scheduler {
         Ok(())
     }
 
-    fn persist_task(&self, job: &str, index: u64, task: Option<&TaskRecord>) -> Result<(), CoordError> {
+    fn persist_task(
+        &self,
+        job: &str,
+        index: u64,
+        task: Option<&TaskRecord>,
+    ) -> Result<(), CoordError> {
         let key = task_key(job, index);
         match task {
             Some(t) => {
@@ -394,7 +418,12 @@ impl Scheduler {
     }
 
     /// Validates `spec_toml` against the catalog and queues its samples.
-    pub fn submit(&self, spec_toml: &str, priority: i32, now: f64) -> Result<JobStatus, CoordError> {
+    pub fn submit(
+        &self,
+        spec_toml: &str,
+        priority: i32,
+        now: f64,
+    ) -> Result<JobStatus, CoordError> {
         let spec = DatasetSpec::from_toml_str(spec_toml, "submitted spec")
             .and_then(|s| s.validate(&self.catalog))
             .map_err(|e| CoordError::BadSpec(e.to_string()))?;
@@ -404,7 +433,13 @@ impl Scheduler {
         let slug: String = spec
             .name
             .chars()
-            .map(|c| if c.is_ascii_alphanumeric() || c == '-' { c.to_ascii_lowercase() } else { '-' })
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' {
+                    c.to_ascii_lowercase()
+                } else {
+                    '-'
+                }
+            })
             .take(40)
             .collect();
         let rec = JobRecord {
@@ -448,7 +483,12 @@ impl Scheduler {
     }
 
     /// Pause, resume or cancel.
-    pub fn set_run_state(&self, job_id: &str, run: RunState, now: f64) -> Result<JobStatus, CoordError> {
+    pub fn set_run_state(
+        &self,
+        job_id: &str,
+        run: RunState,
+        now: f64,
+    ) -> Result<JobStatus, CoordError> {
         let mut inner = self.lock();
         let job = inner
             .jobs
@@ -473,7 +513,9 @@ impl Scheduler {
     /// of waiting out their deadlines.
     pub fn register_worker(&self, name: &str, cached: Vec<String>) -> Result<String, CoordError> {
         if name.is_empty() || name.len() > 200 {
-            return Err(CoordError::Invalid("worker name must be 1-200 characters".into()));
+            return Err(CoordError::Invalid(
+                "worker name must be 1-200 characters".into(),
+            ));
         }
         let mut inner = self.lock();
         let stale: Vec<String> = inner
@@ -500,7 +542,11 @@ impl Scheduler {
         );
         drop(inner);
         if !stale.is_empty() {
-            tracing::info!(worker = name, requeued = stale.len(), "worker re-registered; its old leases requeued");
+            tracing::info!(
+                worker = name,
+                requeued = stale.len(),
+                "worker re-registered; its old leases requeued"
+            );
             self.notify();
         }
         Ok(name.to_owned())
@@ -563,7 +609,12 @@ impl Scheduler {
             if out.len() >= capacity as usize {
                 break;
             }
-            let Inner { jobs, leases, deadlines, .. } = &mut *inner;
+            let Inner {
+                jobs,
+                leases,
+                deadlines,
+                ..
+            } = &mut *inner;
             let Some(job) = jobs.get_mut(&job_id) else {
                 continue;
             };
@@ -583,7 +634,9 @@ impl Scheduler {
                 .map(|(i, _)| i as u32)
                 .collect();
             for h in local_heads {
-                let Some(set) = job.by_head.get(&h) else { continue };
+                let Some(set) = job.by_head.get(&h) else {
+                    continue;
+                };
                 for &i in set.iter() {
                     if picked.len() >= want {
                         break;
@@ -619,7 +672,8 @@ impl Scheduler {
                 job.leased += 1;
                 leases.insert(lease.id.clone(), (job_id.clone(), index));
                 deadlines.insert((ms(deadline), lease.id.clone()));
-                let sample = expand(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
+                let sample =
+                    expand(&job.spec, index).map_err(|e| CoordError::BadSpec(e.to_string()))?;
                 let sample_json = compact_json(&sample)?;
                 let assets = required_assets(&sample, &self.catalog)
                     .map_err(|e| CoordError::BadSpec(e.to_string()))?
@@ -645,7 +699,12 @@ impl Scheduler {
     }
 
     /// Extends `worker`'s leases; returns the ones it no longer holds.
-    pub fn heartbeat(&self, worker: &str, leases: &[String], now: f64) -> Result<(Vec<String>, f64), CoordError> {
+    pub fn heartbeat(
+        &self,
+        worker: &str,
+        leases: &[String],
+        now: f64,
+    ) -> Result<(Vec<String>, f64), CoordError> {
         let mut inner = self.lock();
         let deadline = now + self.lease_seconds;
         let mut lost = Vec::new();
@@ -655,7 +714,9 @@ impl Scheduler {
                 lost.push(id.clone());
                 continue;
             };
-            let Inner { jobs, deadlines, .. } = &mut *inner;
+            let Inner {
+                jobs, deadlines, ..
+            } = &mut *inner;
             let Some(job) = jobs.get_mut(&job_id) else {
                 lost.push(id.clone());
                 continue;
@@ -667,7 +728,10 @@ impl Scheduler {
                     l.deadline_unix = deadline;
                     deadlines.insert((ms(deadline), l.id.clone()));
                     if let Some(t) = job.tasks.get(&index) {
-                        batch.insert(task_key(&job_id, index), serde_json::to_vec(t).map_err(json_err)?);
+                        batch.insert(
+                            task_key(&job_id, index),
+                            serde_json::to_vec(t).map_err(json_err)?,
+                        );
                     }
                 }
                 _ => lost.push(id.clone()),
@@ -700,7 +764,13 @@ impl Scheduler {
     }
 
     /// Decides whether `worker` may upload sample (job, index) under `lease_id`.
-    pub fn check_upload(&self, worker: &str, lease_id: &str, job_id: &str, index: u64) -> Result<UploadCheck, CoordError> {
+    pub fn check_upload(
+        &self,
+        worker: &str,
+        lease_id: &str,
+        job_id: &str,
+        index: u64,
+    ) -> Result<UploadCheck, CoordError> {
         if self.samples.is_committed(job_id, index)? {
             return Ok(UploadCheck::AlreadyCommitted);
         }
@@ -751,7 +821,12 @@ impl Scheduler {
     /// Records that (job, index) was committed to the sample index.
     pub fn mark_done(&self, job_id: &str, index: u64, now: f64) -> Result<(), CoordError> {
         let mut inner = self.lock();
-        let Inner { jobs, leases, deadlines, .. } = &mut *inner;
+        let Inner {
+            jobs,
+            leases,
+            deadlines,
+            ..
+        } = &mut *inner;
         let Some(job) = jobs.get_mut(job_id) else {
             return Ok(());
         };
@@ -769,28 +844,44 @@ impl Scheduler {
             job.commits.pop_front();
         }
         drop(inner);
-        self.persist_task(job_id, index, None)?;
+        // The task's sled record is left behind: the sample index says "done" and wins at
+        // recovery, which also deletes such records (one write fewer per commit).
         self.notify();
         Ok(())
     }
 
     /// A worker reports it could not render its leased task. Returns whether it will be retried.
-    pub fn fail(&self, worker: &str, lease_id: &str, reason: &str, now: f64) -> Result<bool, CoordError> {
+    pub fn fail(
+        &self,
+        worker: &str,
+        lease_id: &str,
+        reason: &str,
+        now: f64,
+    ) -> Result<bool, CoordError> {
         let mut inner = self.lock();
         let Some((job_id, index)) = inner.leases.get(lease_id).cloned() else {
             return Err(CoordError::LeaseLost(format!(
                 "lease {lease_id} is not current (expired or already finished)"
             )));
         };
-        let Inner { jobs, leases, deadlines, .. } = &mut *inner;
+        let Inner {
+            jobs,
+            leases,
+            deadlines,
+            ..
+        } = &mut *inner;
         let Some(job) = jobs.get_mut(&job_id) else {
             return Err(CoordError::UnknownJob(job_id));
         };
         let Some(task) = job.tasks.get_mut(&index) else {
-            return Err(CoordError::LeaseLost(format!("lease {lease_id} is not current")));
+            return Err(CoordError::LeaseLost(format!(
+                "lease {lease_id} is not current"
+            )));
         };
         if task.lease.as_ref().is_none_or(|l| l.worker != worker) {
-            return Err(CoordError::LeaseLost(format!("lease {lease_id} is not held by {worker}")));
+            return Err(CoordError::LeaseLost(format!(
+                "lease {lease_id} is not held by {worker}"
+            )));
         }
         if let Some(l) = task.lease.take() {
             leases.remove(&l.id);
@@ -837,7 +928,12 @@ impl Scheduler {
     pub fn totals(&self) -> (u64, u64, u64, u64) {
         let inner = self.lock();
         inner.jobs.values().fold((0, 0, 0, 0), |(q, l, d, f), j| {
-            (q + j.queued.len() as u64, l + j.leased, d + j.done, f + j.failed)
+            (
+                q + j.queued.len() as u64,
+                l + j.leased,
+                d + j.done,
+                f + j.failed,
+            )
         })
     }
 }

@@ -1,6 +1,6 @@
 //! Opening the coordinator's data directory and serving its gRPC API.
 
-use std::collections::HashSet;
+use std::collections::HashMap;
 use std::future::Future;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -54,7 +54,10 @@ pub struct Coordinator {
     token: String,
     tls: Option<(PathBuf, PathBuf)>,
     /// The group-sync queue and the db it flushes; the flusher task starts in `serve`.
-    sync: (tokio::sync::mpsc::UnboundedReceiver<tokio::sync::oneshot::Sender<Result<(), String>>>, sled::Db),
+    sync: (
+        tokio::sync::mpsc::UnboundedReceiver<tokio::sync::oneshot::Sender<Result<(), String>>>,
+        sled::Db,
+    ),
 }
 
 fn io(path: &std::path::Path, e: impl std::fmt::Display) -> CoordError {
@@ -84,8 +87,9 @@ impl Coordinator {
             config.max_upload_bytes.max(1 << 30),
             true,
         )?;
-        let blobs: Arc<dyn BlobStore> = Arc::new(TieredBlobStore::open(&db, disk, DEFAULT_INLINE_MAX)?);
-        let mut assets = HashSet::new();
+        let blobs: Arc<dyn BlobStore> =
+            Arc::new(TieredBlobStore::open(&db, disk, DEFAULT_INLINE_MAX)?);
+        let mut assets = HashMap::new();
         for asset in &config.catalog.assets {
             let path = config.catalog.path_of(asset);
             let hash = blobs.put_file(&path)?;
@@ -98,13 +102,23 @@ impl Coordinator {
                     asset.blake3
                 )));
             }
-            assets.insert(hash);
+            let size = blobs.size(&hash)?.unwrap_or(0);
+            assets.insert(hash, size);
         }
-        let catalog_file = config.catalog.root.join(lightfarm_scene::catalog::CATALOG_FILE);
+        let catalog_file = config
+            .catalog
+            .root
+            .join(lightfarm_scene::catalog::CATALOG_FILE);
         let catalog_blake3 = blobs.put_file(&catalog_file)?;
-        assets.insert(catalog_blake3.clone());
+        let size = blobs.size(&catalog_blake3)?.unwrap_or(0);
+        assets.insert(catalog_blake3.clone(), size);
         let samples = SampleIndex::open(&db)?;
-        let scheduler = Arc::new(Scheduler::open(&db, config.catalog.clone(), samples, config.lease_seconds)?);
+        let scheduler = Arc::new(Scheduler::open(
+            &db,
+            config.catalog.clone(),
+            samples,
+            config.lease_seconds,
+        )?);
         let (durable, sync_rx) = GroupSync::channel();
         let shared = Arc::new(Shared {
             scheduler,
@@ -140,7 +154,11 @@ impl Coordinator {
     ) -> Result<(), CoordError> {
         let expected = format!("Bearer {}", self.token);
         let auth = move |req: Request<()>| -> Result<Request<()>, Status> {
-            match req.metadata().get("authorization").and_then(|v| v.to_str().ok()) {
+            match req
+                .metadata()
+                .get("authorization")
+                .and_then(|v| v.to_str().ok())
+            {
                 Some(v) if constant_time_eq(v.as_bytes(), expected.as_bytes()) => Ok(req),
                 Some(_) => Err(Status::unauthenticated(
                     "wrong bearer token: use the coordinator's --token / LIGHTFARM_TOKEN",
@@ -151,7 +169,11 @@ impl Coordinator {
             }
         };
         let (sync_rx, db) = self.sync;
-        let flusher = tokio::spawn(GroupSync::run(sync_rx, db.clone(), self.shared.blobs.clone()));
+        let flusher = tokio::spawn(GroupSync::run(
+            sync_rx,
+            db.clone(),
+            self.shared.blobs.clone(),
+        ));
         let shared = self.shared.clone();
         let expiry = tokio::spawn(async move {
             let mut tick = tokio::time::interval(Duration::from_millis(500));
@@ -168,20 +190,29 @@ impl Coordinator {
             let cert = std::fs::read(cert).map_err(|e| io(cert, e))?;
             let key = std::fs::read(key).map_err(|e| io(key, e))?;
             builder = builder
-                .tls_config(tonic::transport::ServerTlsConfig::new().identity(tonic::transport::Identity::from_pem(cert, key)))
+                .tls_config(
+                    tonic::transport::ServerTlsConfig::new()
+                        .identity(tonic::transport::Identity::from_pem(cert, key)),
+                )
                 .map_err(|e| CoordError::Invalid(format!("TLS: {e}")))?;
         }
         let result = builder
-            .add_service(
-                pb::jobs_server::JobsServer::with_interceptor(JobsService(self.shared.clone()), auth.clone())
+            .add_service(pb::jobs_server::JobsServer::with_interceptor(
+                JobsService(self.shared.clone()),
+                auth.clone(),
+            ))
+            .add_service(pb::workers_server::WorkersServer::with_interceptor(
+                WorkersService(self.shared.clone()),
+                auth.clone(),
+            ))
+            .add_service(pb::samples_server::SamplesServer::with_interceptor(
+                SamplesService(self.shared.clone()),
+                auth,
+            ))
+            .serve_with_incoming_shutdown(
+                tokio_stream::wrappers::TcpListenerStream::new(listener),
+                shutdown,
             )
-            .add_service(
-                pb::workers_server::WorkersServer::with_interceptor(WorkersService(self.shared.clone()), auth.clone())
-            )
-            .add_service(
-                pb::samples_server::SamplesServer::with_interceptor(SamplesService(self.shared.clone()), auth)
-            )
-            .serve_with_incoming_shutdown(tokio_stream::wrappers::TcpListenerStream::new(listener), shutdown)
             .await
             .map_err(|e| CoordError::Storage(format!("gRPC server: {e}")));
         expiry.abort();

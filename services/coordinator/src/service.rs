@@ -35,8 +35,9 @@ pub struct Shared {
     pub metrics: Arc<Metrics>,
     pub max_upload_bytes: u64,
     pub heartbeat_seconds: u32,
-    /// Assets by BLAKE3 a worker may fetch (the catalog's files, imported at start).
-    pub assets: std::collections::HashSet<String>,
+    /// Assets by BLAKE3 a worker may fetch (the catalog's files, imported at start), with
+    /// their sizes.
+    pub assets: std::collections::HashMap<String, u64>,
     /// BLAKE3 of the catalog file itself (workers fetch it to resolve ids to files).
     pub catalog_blake3: String,
     /// Waited on before a commit is acknowledged: an acknowledged sample survives kill -9
@@ -124,12 +125,17 @@ impl pb::jobs_server::Jobs for JobsService {
                     Status::invalid_argument(format!("spec JSON is not a TOML document: {e}"))
                 })?
             }
-            None => return Err(Status::invalid_argument("give the dataset spec (toml or json)")),
+            None => {
+                return Err(Status::invalid_argument(
+                    "give the dataset spec (toml or json)",
+                ))
+            }
         };
         let s = self.0.scheduler.clone();
-        let status = tokio::task::spawn_blocking(move || s.submit(&toml_text, req.priority, now_unix()))
-            .await
-            .map_err(|e| Status::internal(e.to_string()))??;
+        let status =
+            tokio::task::spawn_blocking(move || s.submit(&toml_text, req.priority, now_unix()))
+                .await
+                .map_err(|e| Status::internal(e.to_string()))??;
         Ok(Response::new(job_to_pb(&status)))
     }
 
@@ -142,7 +148,13 @@ impl pb::jobs_server::Jobs for JobsService {
         &self,
         _req: Request<pb::ListJobsRequest>,
     ) -> Result<Response<pb::ListJobsResponse>, Status> {
-        let jobs = self.0.scheduler.jobs(now_unix()).iter().map(job_to_pb).collect();
+        let jobs = self
+            .0
+            .scheduler
+            .jobs(now_unix())
+            .iter()
+            .map(job_to_pb)
+            .collect();
         Ok(Response::new(pb::ListJobsResponse { jobs }))
     }
 
@@ -187,17 +199,29 @@ impl pb::jobs_server::Jobs for JobsService {
     }
 
     async fn cancel_job(&self, req: Request<pb::JobRef>) -> Result<Response<pb::Job>, Status> {
-        let s = self.0.scheduler.set_run_state(&req.into_inner().job_id, RunState::Cancelled, now_unix())?;
+        let s = self.0.scheduler.set_run_state(
+            &req.into_inner().job_id,
+            RunState::Cancelled,
+            now_unix(),
+        )?;
         Ok(Response::new(job_to_pb(&s)))
     }
 
     async fn pause_job(&self, req: Request<pb::JobRef>) -> Result<Response<pb::Job>, Status> {
-        let s = self.0.scheduler.set_run_state(&req.into_inner().job_id, RunState::Paused, now_unix())?;
+        let s = self.0.scheduler.set_run_state(
+            &req.into_inner().job_id,
+            RunState::Paused,
+            now_unix(),
+        )?;
         Ok(Response::new(job_to_pb(&s)))
     }
 
     async fn resume_job(&self, req: Request<pb::JobRef>) -> Result<Response<pb::Job>, Status> {
-        let s = self.0.scheduler.set_run_state(&req.into_inner().job_id, RunState::Running, now_unix())?;
+        let s = self.0.scheduler.set_run_state(
+            &req.into_inner().job_id,
+            RunState::Running,
+            now_unix(),
+        )?;
         Ok(Response::new(job_to_pb(&s)))
     }
 }
@@ -213,7 +237,10 @@ impl pb::workers_server::Workers for WorkersService {
         req: Request<pb::RegisterWorkerRequest>,
     ) -> Result<Response<pb::RegisterWorkerResponse>, Status> {
         let req = req.into_inner();
-        let id = self.0.scheduler.register_worker(&req.name, req.cached_assets)?;
+        let id = self
+            .0
+            .scheduler
+            .register_worker(&req.name, req.cached_assets)?;
         tracing::info!(worker = %id, device = %req.device, "worker registered");
         Ok(Response::new(pb::RegisterWorkerResponse {
             worker_id: id,
@@ -233,8 +260,14 @@ impl pb::workers_server::Workers for WorkersService {
         let cached = (!req.cached_assets.is_empty()).then_some(req.cached_assets);
         let start = std::time::Instant::now();
         // Microseconds of work under one short lock: a blocking-pool hop would cost more.
-        let tasks = self.0.scheduler.lease(&req.worker_id, capacity, cached, now_unix())?;
-        self.0.metrics.lease_latency.observe(start.elapsed().as_secs_f64());
+        let tasks = self
+            .0
+            .scheduler
+            .lease(&req.worker_id, capacity, cached, now_unix())?;
+        self.0
+            .metrics
+            .lease_latency
+            .observe(start.elapsed().as_secs_f64());
         self.0.metrics.leased.inc_by(tasks.len() as u64);
         let tasks = tasks
             .into_iter()
@@ -248,7 +281,7 @@ impl pb::workers_server::Workers for WorkersService {
                     .assets
                     .into_iter()
                     .map(|(id, blake3)| {
-                        let size = self.0.blobs.size(&blake3).ok().flatten().unwrap_or(0);
+                        let size = self.0.assets.get(&blake3).copied().unwrap_or(0);
                         pb::AssetRef { id, blake3, size }
                     })
                     .collect(),
@@ -264,7 +297,10 @@ impl pb::workers_server::Workers for WorkersService {
     ) -> Result<Response<pb::HeartbeatResponse>, Status> {
         let req = req.into_inner();
         let ids: Vec<String> = req.leases.into_iter().map(|l| l.lease_id).collect();
-        let (lost, deadline) = self.0.scheduler.heartbeat(&req.worker_id, &ids, now_unix())?;
+        let (lost, deadline) = self
+            .0
+            .scheduler
+            .heartbeat(&req.worker_id, &ids, now_unix())?;
         Ok(Response::new(pb::HeartbeatResponse {
             lost_leases: lost,
             deadline_unix: deadline,
@@ -276,16 +312,15 @@ impl pb::workers_server::Workers for WorkersService {
         req: Request<Streaming<pb::UploadChunk>>,
     ) -> Result<Response<pb::UploadSampleResponse>, Status> {
         let mut stream = req.into_inner();
-        let header = match stream.message().await? {
-            Some(pb::UploadChunk {
-                kind: Some(pb::upload_chunk::Kind::Header(h)),
-            }) => h,
-            _ => {
-                return Err(Status::invalid_argument(
+        let header =
+            match stream.message().await? {
+                Some(pb::UploadChunk {
+                    kind: Some(pb::upload_chunk::Kind::Header(h)),
+                }) => h,
+                _ => return Err(Status::invalid_argument(
                     "an upload starts with its header (worker, lease, job, index, size, blake3)",
-                ))
-            }
-        };
+                )),
+            };
         if header.size > self.0.max_upload_bytes {
             self.0.metrics.rejected_uploads.inc();
             return Err(CoordError::TooLarge(format!(
@@ -311,7 +346,12 @@ impl pb::workers_server::Workers for WorkersService {
                 // Drain so the client sees a clean end of stream, then acknowledge.
                 while stream.message().await?.is_some() {}
                 self.0.metrics.duplicate_uploads.inc();
-                let existing = self.0.scheduler.samples().get(&header.job_id, header.index).map_err(store)?;
+                let existing = self
+                    .0
+                    .scheduler
+                    .samples()
+                    .get(&header.job_id, header.index)
+                    .map_err(store)?;
                 return Ok(Response::new(pb::UploadSampleResponse {
                     committed: false,
                     blake3: existing.map(|r| r.blake3).unwrap_or_default(),
@@ -333,7 +373,11 @@ impl pb::workers_server::Workers for WorkersService {
                     }
                     writer.write(&bytes).map_err(store)?;
                 }
-                _ => return Err(Status::invalid_argument("only data chunks may follow the header")),
+                _ => {
+                    return Err(Status::invalid_argument(
+                        "only data chunks may follow the header",
+                    ))
+                }
             }
         }
         // Verifies size and hash; on mismatch nothing is stored.
@@ -352,28 +396,38 @@ impl pb::workers_server::Workers for WorkersService {
             serde_json::Value::String(header.lease_id.clone()),
         );
         let now = now_unix();
-        let outcome = self.0.scheduler.samples().commit(
-            &header.job_id,
-            header.index,
-            &split,
-            &blake3,
-            header.size,
-            &metadata,
-            now,
-        ).map_err(store)?;
+        let outcome = self
+            .0
+            .scheduler
+            .samples()
+            .commit(
+                &header.job_id,
+                header.index,
+                &split,
+                &blake3,
+                header.size,
+                &metadata,
+                now,
+            )
+            .map_err(store)?;
         let committed = matches!(outcome, CommitOutcome::Committed(_));
         if committed {
             self.0.metrics.committed.inc();
         } else {
             self.0.metrics.duplicate_uploads.inc();
         }
-        self.0.scheduler.mark_done(&header.job_id, header.index, now)?;
+        self.0
+            .scheduler
+            .mark_done(&header.job_id, header.index, now)?;
         self.0
             .durable
             .sync()
             .await
             .map_err(|e| Status::internal(format!("making the commit durable: {e}")))?;
-        Ok(Response::new(pb::UploadSampleResponse { committed, blake3 }))
+        Ok(Response::new(pb::UploadSampleResponse {
+            committed,
+            blake3,
+        }))
     }
 
     async fn fail_task(
@@ -381,7 +435,10 @@ impl pb::workers_server::Workers for WorkersService {
         req: Request<pb::FailTaskRequest>,
     ) -> Result<Response<pb::FailTaskResponse>, Status> {
         let req = req.into_inner();
-        let retry = self.0.scheduler.fail(&req.worker_id, &req.lease_id, &req.reason, now_unix())?;
+        let retry =
+            self.0
+                .scheduler
+                .fail(&req.worker_id, &req.lease_id, &req.reason, now_unix())?;
         self.0.metrics.task_failures.inc();
         Ok(Response::new(pb::FailTaskResponse { will_retry: retry }))
     }
@@ -394,12 +451,15 @@ impl pb::workers_server::Workers for WorkersService {
     ) -> Result<Response<Self::FetchAssetStream>, Status> {
         let hash = req.into_inner().blake3;
         // Only catalog files may be fetched, never sample blobs by guessing hashes.
-        if !self.0.assets.contains(&hash) {
+        if !self.0.assets.contains_key(&hash) {
             return Err(Status::not_found(format!(
                 "no asset with blake3 {hash} in this coordinator's catalog"
             )));
         }
-        stream_blob(self.0.blobs.clone(), hash, |data, total| pb::AssetChunk { data, total_size: total })
+        stream_blob(self.0.blobs.clone(), hash, |data, total| pb::AssetChunk {
+            data,
+            total_size: total,
+        })
     }
 }
 
@@ -409,7 +469,10 @@ fn stream_blob<T: Send + 'static>(
     hash: String,
     make: fn(Vec<u8>, u64) -> T,
 ) -> Result<Response<BoxStream<T>>, Status> {
-    let total = blobs.size(&hash).map_err(store)?.ok_or_else(|| Status::not_found(format!("blob {hash} is missing")))?;
+    let total = blobs
+        .size(&hash)
+        .map_err(store)?
+        .ok_or_else(|| Status::not_found(format!("blob {hash} is missing")))?;
     let mut reader = blobs.open(&hash).map_err(store)?;
     let (tx, rx) = mpsc::channel(4);
     tokio::task::spawn_blocking(move || {
@@ -419,7 +482,8 @@ fn stream_blob<T: Send + 'static>(
             let n = match std::io::Read::read(&mut reader, &mut buf) {
                 Ok(n) => n,
                 Err(e) => {
-                    let _ = tx.blocking_send(Err(Status::internal(format!("reading blob {hash}: {e}"))));
+                    let _ = tx
+                        .blocking_send(Err(Status::internal(format!("reading blob {hash}: {e}"))));
                     return;
                 }
             };
@@ -427,7 +491,11 @@ fn stream_blob<T: Send + 'static>(
                 return;
             }
             buf.truncate(n);
-            if tx.blocking_send(Ok(make(buf, if first { total } else { 0 }))).is_err() || n == 0 {
+            if tx
+                .blocking_send(Ok(make(buf, if first { total } else { 0 })))
+                .is_err()
+                || n == 0
+            {
                 return;
             }
             first = false;
@@ -440,7 +508,11 @@ fn stream_blob<T: Send + 'static>(
 
 pub struct SamplesService(pub Arc<Shared>);
 
-fn sample_chunks(blobs: &dyn BlobStore, record: &SampleRecord, metadata_only: bool) -> Result<Vec<pb::SampleChunk>, Status> {
+fn sample_chunks(
+    blobs: &dyn BlobStore,
+    record: &SampleRecord,
+    metadata_only: bool,
+) -> Result<Vec<pb::SampleChunk>, Status> {
     let mut out = vec![pb::SampleChunk {
         kind: Some(pb::sample_chunk::Kind::Info(record_to_pb(record))),
     }];
@@ -460,7 +532,11 @@ impl pb::samples_server::Samples for SamplesService {
         req: Request<pb::ListSamplesRequest>,
     ) -> Result<Response<pb::ListSamplesResponse>, Status> {
         let req = req.into_inner();
-        let limit = if req.limit == 0 { 1000 } else { req.limit.min(10_000) } as usize;
+        let limit = if req.limit == 0 {
+            1000
+        } else {
+            req.limit.min(10_000)
+        } as usize;
         let (records, total) = self
             .0
             .scheduler
@@ -486,9 +562,16 @@ impl pb::samples_server::Samples for SamplesService {
             .samples()
             .get(&req.job_id, req.index)
             .map_err(store)?
-            .ok_or_else(|| Status::not_found(format!("sample {} of job {} is not committed", req.index, req.job_id)))?;
+            .ok_or_else(|| {
+                Status::not_found(format!(
+                    "sample {} of job {} is not committed",
+                    req.index, req.job_id
+                ))
+            })?;
         let chunks = sample_chunks(self.0.blobs.as_ref(), &record, false)?;
-        Ok(Response::new(Box::pin(tokio_stream::iter(chunks.into_iter().map(Ok)))))
+        Ok(Response::new(Box::pin(tokio_stream::iter(
+            chunks.into_iter().map(Ok),
+        ))))
     }
 
     type StreamSamplesStream = BoxStream<pb::SampleChunk>;
@@ -504,7 +587,12 @@ impl pb::samples_server::Samples for SamplesService {
         tokio::spawn(async move {
             let mut cursor = req.cursor;
             loop {
-                let batch = match shared.scheduler.samples().since(cursor, opt(&req.job_id), opt(&req.split), 64) {
+                let batch = match shared.scheduler.samples().since(
+                    cursor,
+                    opt(&req.job_id),
+                    opt(&req.split),
+                    64,
+                ) {
                     Ok(b) => b,
                     Err(e) => {
                         let _ = tx.send(Err(CoordError::from(e).into())).await;
@@ -513,13 +601,14 @@ impl pb::samples_server::Samples for SamplesService {
                 };
                 for record in &batch {
                     cursor = record.sequence + 1;
-                    let chunks = match sample_chunks(shared.blobs.as_ref(), record, req.metadata_only) {
-                        Ok(c) => c,
-                        Err(e) => {
-                            let _ = tx.send(Err(e)).await;
-                            return;
-                        }
-                    };
+                    let chunks =
+                        match sample_chunks(shared.blobs.as_ref(), record, req.metadata_only) {
+                            Ok(c) => c,
+                            Err(e) => {
+                                let _ = tx.send(Err(e)).await;
+                                return;
+                            }
+                        };
                     for c in chunks {
                         if tx.send(Ok(c)).await.is_err() {
                             return;

@@ -34,13 +34,19 @@ struct Running {
 
 async fn start(max_upload: u64) -> Running {
     let dir = tempfile::tempdir().expect("tmp");
-    let mut config = CoordinatorConfig::new(dir.path().join("data"), TOKEN.into(), Catalog::builtin().expect("catalog"));
+    let mut config = CoordinatorConfig::new(
+        dir.path().join("data"),
+        TOKEN.into(),
+        Catalog::builtin().expect("catalog"),
+    );
     config.max_upload_bytes = max_upload;
     let coordinator = tokio::task::spawn_blocking(move || Coordinator::open(config))
         .await
         .expect("join")
         .expect("open");
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.expect("bind");
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("bind");
     let addr = format!("http://{}", listener.local_addr().expect("addr"));
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
     let handle = tokio::spawn(async move {
@@ -51,17 +57,30 @@ async fn start(max_upload: u64) -> Running {
             .await
             .expect("serve");
     });
-    Running { addr, stop: Some(tx), handle, dir }
+    Running {
+        addr,
+        stop: Some(tx),
+        handle,
+        dir,
+    }
 }
 
 type Authed = InterceptedService<Channel, lightfarm_worker::client::Auth>;
 
-fn clients(addr: &str, token: &str) -> (pb::jobs_client::JobsClient<Authed>, pb::workers_client::WorkersClient<Authed>, pb::samples_client::SamplesClient<Authed>) {
+fn clients(
+    addr: &str,
+    token: &str,
+) -> (
+    pb::jobs_client::JobsClient<Authed>,
+    pb::workers_client::WorkersClient<Authed>,
+    pb::samples_client::SamplesClient<Authed>,
+) {
     let (ch, auth) = lightfarm_worker::client::channel(addr, token, None).expect("channel");
     (
         pb::jobs_client::JobsClient::with_interceptor(ch.clone(), auth.clone()),
         pb::workers_client::WorkersClient::with_interceptor(ch.clone(), auth.clone()),
-        pb::samples_client::SamplesClient::with_interceptor(ch, auth).max_decoding_message_size(64 << 20),
+        pb::samples_client::SamplesClient::with_interceptor(ch, auth)
+            .max_decoding_message_size(64 << 20),
     )
 }
 
@@ -99,7 +118,13 @@ async fn a_dataset_renders_commits_once_and_exports() {
             let _ = rx.wait_for(|d| *d).await;
         })));
     }
-    let mut watch = jobs.watch_job(pb::JobRef { job_id: job.id.clone() }).await.expect("watch").into_inner();
+    let mut watch = jobs
+        .watch_job(pb::JobRef {
+            job_id: job.id.clone(),
+        })
+        .await
+        .expect("watch")
+        .into_inner();
     let mut last = None;
     let watched = tokio::time::timeout(Duration::from_secs(600), async {
         while let Some(j) = watch.message().await.expect("watch stream") {
@@ -117,7 +142,12 @@ async fn a_dataset_renders_commits_once_and_exports() {
 
     // Every index committed exactly once.
     let list = samples
-        .list_samples(pb::ListSamplesRequest { job_id: job.id.clone(), split: String::new(), offset: 0, limit: 0 })
+        .list_samples(pb::ListSamplesRequest {
+            job_id: job.id.clone(),
+            split: String::new(),
+            offset: 0,
+            limit: 0,
+        })
         .await
         .expect("list")
         .into_inner();
@@ -132,16 +162,38 @@ async fn a_dataset_renders_commits_once_and_exports() {
 
     // Stream everything, export as WebDataset, read it back, decode the EXRs.
     let mut stream = samples
-        .stream_samples(pb::StreamSamplesRequest { job_id: job.id.clone(), split: String::new(), cursor: 0, follow: false, metadata_only: false })
+        .stream_samples(pb::StreamSamplesRequest {
+            job_id: job.id.clone(),
+            split: String::new(),
+            cursor: 0,
+            follow: false,
+            metadata_only: false,
+        })
         .await
         .expect("stream")
         .into_inner();
     let out = c.dir.path().join("export");
-    let mut writer = lightfarm_store::ExportWriter::create(&out, &job.id, &lightfarm_store::ExportFormat::WebDataset { samples_per_shard: 4 }).expect("writer");
+    let mut writer = lightfarm_store::ExportWriter::create(
+        &out,
+        &job.id,
+        &lightfarm_store::ExportFormat::WebDataset {
+            samples_per_shard: 4,
+        },
+    )
+    .expect("writer");
     let mut current: Option<(pb::SampleInfo, Vec<u8>)> = None;
     let add = |w: &mut lightfarm_store::ExportWriter, cur: Option<(pb::SampleInfo, Vec<u8>)>| {
         if let Some((i, bytes)) = cur {
-            let r = lightfarm_store::SampleRecord { job_id: i.job_id, index: i.index, split: i.split, blake3: i.blake3, size: i.size, metadata_json: i.metadata_json, committed_unix: i.committed_unix, sequence: i.sequence };
+            let r = lightfarm_store::SampleRecord {
+                job_id: i.job_id,
+                index: i.index,
+                split: i.split,
+                blake3: i.blake3,
+                size: i.size,
+                metadata_json: i.metadata_json,
+                committed_unix: i.committed_unix,
+                sequence: i.sequence,
+            };
             w.add(&r, &bytes).expect("add");
         }
     };
@@ -151,7 +203,11 @@ async fn a_dataset_renders_commits_once_and_exports() {
                 add(&mut writer, current.take());
                 current = Some((i, Vec::new()));
             }
-            Some(pb::sample_chunk::Kind::Data(d)) => current.as_mut().expect("info first").1.extend_from_slice(&d),
+            Some(pb::sample_chunk::Kind::Data(d)) => current
+                .as_mut()
+                .expect("info first")
+                .1
+                .extend_from_slice(&d),
             None => {}
         }
     }
@@ -172,9 +228,24 @@ async fn a_dataset_renders_commits_once_and_exports() {
             .expect("decodes as EXR");
         let layer = &img.layer_data[0];
         assert_eq!(layer.size.width(), 16);
-        let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
-        for want in ["lit0.R", "lit1.B", "albedo.G", "normal.Z", "normal_lens.X", "mask.A"] {
-            assert!(names.iter().any(|n| n == want), "{want} missing in {names:?}");
+        let names: Vec<String> = layer
+            .channel_data
+            .list
+            .iter()
+            .map(|c| c.name.to_string())
+            .collect();
+        for want in [
+            "lit0.R",
+            "lit1.B",
+            "albedo.G",
+            "normal.Z",
+            "normal_lens.X",
+            "mask.A",
+        ] {
+            assert!(
+                names.iter().any(|n| n == want),
+                "{want} missing in {names:?}"
+            );
         }
         assert_eq!(s.json["index"], s.index);
         assert!(s.json["sample"]["head"]["blake3"].is_string());
@@ -190,24 +261,54 @@ async fn bad_input_gets_clear_codes_and_stores_nothing() {
     // Authentication.
     for token in ["", "wrong"] {
         let (mut jobs, ..) = clients(&c.addr, token);
-        let e = jobs.list_jobs(pb::ListJobsRequest {}).await.expect_err("no token");
+        let e = jobs
+            .list_jobs(pb::ListJobsRequest {})
+            .await
+            .expect_err("no token");
         assert_eq!(e.code(), Code::Unauthenticated, "{e}");
         assert!(e.message().contains("token"));
     }
     let (mut jobs, mut workers, mut samples) = clients(&c.addr, TOKEN);
-    let e = jobs.get_job(pb::JobRef { job_id: "ghost".into() }).await.expect_err("unknown job");
+    let e = jobs
+        .get_job(pb::JobRef {
+            job_id: "ghost".into(),
+        })
+        .await
+        .expect_err("unknown job");
     assert_eq!(e.code(), Code::NotFound);
     assert!(e.message().contains("ghost"));
     let e = jobs
-        .submit_dataset(pb::SubmitDatasetRequest { spec: Some(pb::submit_dataset_request::Spec::Toml("name = \"x\"\ncount = -3\n".into())), priority: 0 })
+        .submit_dataset(pb::SubmitDatasetRequest {
+            spec: Some(pb::submit_dataset_request::Spec::Toml(
+                "name = \"x\"\ncount = -3\n".into(),
+            )),
+            priority: 0,
+        })
         .await
         .expect_err("bad spec");
     assert_eq!(e.code(), Code::InvalidArgument);
     assert!(e.message().contains("count"), "{e}");
 
     let job = submit(&mut jobs, SPEC).await;
-    let reg = workers.register_worker(pb::RegisterWorkerRequest { name: "w".into(), ..Default::default() }).await.expect("register").into_inner();
-    let task = workers.lease_tasks(pb::LeaseTasksRequest { worker_id: reg.worker_id.clone(), capacity: 1, cached_assets: vec![] }).await.expect("lease").into_inner().tasks.remove(0);
+    let reg = workers
+        .register_worker(pb::RegisterWorkerRequest {
+            name: "w".into(),
+            ..Default::default()
+        })
+        .await
+        .expect("register")
+        .into_inner();
+    let task = workers
+        .lease_tasks(pb::LeaseTasksRequest {
+            worker_id: reg.worker_id.clone(),
+            capacity: 1,
+            cached_assets: vec![],
+        })
+        .await
+        .expect("lease")
+        .into_inner()
+        .tasks
+        .remove(0);
     let body = vec![7u8; 5000];
     let good = blake3::hash(&body).to_hex().to_string();
     let header = |size: u64, hash: &str, lease: &str, job: &str| pb::UploadChunk {
@@ -221,20 +322,59 @@ async fn bad_input_gets_clear_codes_and_stores_nothing() {
             stats_json: "{}".into(),
         })),
     };
-    let data = |b: &[u8]| pb::UploadChunk { kind: Some(pb::upload_chunk::Kind::Data(b.to_vec())) };
+    let data = |b: &[u8]| pb::UploadChunk {
+        kind: Some(pb::upload_chunk::Kind::Data(b.to_vec())),
+    };
     let upload = |msgs: Vec<pb::UploadChunk>| {
         let mut w = workers.clone();
         async move { w.upload_sample(tokio_stream::iter(msgs)).await }
     };
     let cases: Vec<(&str, Vec<pb::UploadChunk>, Code)> = vec![
-        ("checksum mismatch", vec![header(5000, &"0".repeat(64), &task.lease_id, &job.id), data(&body)], Code::DataLoss),
-        ("truncated stream", vec![header(5000, &good, &task.lease_id, &job.id), data(&body[..2500])], Code::DataLoss),
-        ("more than declared", vec![header(100, &good, &task.lease_id, &job.id), data(&body)], Code::ResourceExhausted),
-        ("oversized", vec![header(2 << 20, &good, &task.lease_id, &job.id)], Code::ResourceExhausted),
+        (
+            "checksum mismatch",
+            vec![
+                header(5000, &"0".repeat(64), &task.lease_id, &job.id),
+                data(&body),
+            ],
+            Code::DataLoss,
+        ),
+        (
+            "truncated stream",
+            vec![
+                header(5000, &good, &task.lease_id, &job.id),
+                data(&body[..2500]),
+            ],
+            Code::DataLoss,
+        ),
+        (
+            "more than declared",
+            vec![header(100, &good, &task.lease_id, &job.id), data(&body)],
+            Code::ResourceExhausted,
+        ),
+        (
+            "oversized",
+            vec![header(2 << 20, &good, &task.lease_id, &job.id)],
+            Code::ResourceExhausted,
+        ),
         ("no header", vec![data(&body)], Code::InvalidArgument),
-        ("bad hash text", vec![header(5000, "../../etc", &task.lease_id, &job.id), data(&body)], Code::InvalidArgument),
-        ("unknown job", vec![header(5000, &good, &task.lease_id, "ghost"), data(&body)], Code::NotFound),
-        ("someone else's lease", vec![header(5000, &good, "grpc-test-0.0.9", &job.id), data(&body)], Code::FailedPrecondition),
+        (
+            "bad hash text",
+            vec![
+                header(5000, "../../etc", &task.lease_id, &job.id),
+                data(&body),
+            ],
+            Code::InvalidArgument,
+        ),
+        (
+            "unknown job",
+            vec![header(5000, &good, &task.lease_id, "ghost"), data(&body)],
+            Code::NotFound,
+        ),
+        (
+            "someone else's lease",
+            vec![header(5000, &good, "grpc-test-0.0.9", &job.id), data(&body)],
+            Code::FailedPrecondition,
+        ),
     ];
     for (what, msgs, code) in cases {
         let e = upload(msgs).await.expect_err(what);
@@ -242,23 +382,50 @@ async fn bad_input_gets_clear_codes_and_stores_nothing() {
         assert!(!e.message().is_empty());
     }
     // Nothing was committed or left half-written.
-    let list = samples.list_samples(pb::ListSamplesRequest::default()).await.expect("list").into_inner();
+    let list = samples
+        .list_samples(pb::ListSamplesRequest::default())
+        .await
+        .expect("list")
+        .into_inner();
     assert_eq!(list.total, 0);
     let tmp = c.dir.path().join("data/blobs/tmp");
-    let leftovers: Vec<_> = std::fs::read_dir(&tmp).map(|d| d.flatten().collect()).unwrap_or_default();
+    let leftovers: Vec<_> = std::fs::read_dir(&tmp)
+        .map(|d| d.flatten().collect())
+        .unwrap_or_default();
     assert!(leftovers.is_empty(), "temp files left: {leftovers:?}");
     let blob = c.dir.path().join("data/blobs").join(&good[..2]).join(&good);
     assert!(!blob.exists(), "a rejected upload's blob exists");
 
     // The correct upload commits; repeating it is acknowledged without a second commit.
-    let r = upload(vec![header(5000, &good, &task.lease_id, &job.id), data(&body)]).await.expect("good upload").into_inner();
+    let r = upload(vec![
+        header(5000, &good, &task.lease_id, &job.id),
+        data(&body),
+    ])
+    .await
+    .expect("good upload")
+    .into_inner();
     assert!(r.committed);
-    let r = upload(vec![header(5000, &good, &task.lease_id, &job.id), data(&body)]).await.expect("repeat").into_inner();
+    let r = upload(vec![
+        header(5000, &good, &task.lease_id, &job.id),
+        data(&body),
+    ])
+    .await
+    .expect("repeat")
+    .into_inner();
     assert!(!r.committed);
-    let list = samples.list_samples(pb::ListSamplesRequest::default()).await.expect("list").into_inner();
+    let list = samples
+        .list_samples(pb::ListSamplesRequest::default())
+        .await
+        .expect("list")
+        .into_inner();
     assert_eq!(list.total, 1);
     // FetchAsset serves catalog files only.
-    let e = workers.fetch_asset(pb::FetchAssetRequest { blake3: good.clone() }).await.expect_err("not an asset");
+    let e = workers
+        .fetch_asset(pb::FetchAssetRequest {
+            blake3: good.clone(),
+        })
+        .await
+        .expect_err("not an asset");
     assert_eq!(e.code(), Code::NotFound);
 
     let _ = c.stop.take().map(|s| s.send(()));

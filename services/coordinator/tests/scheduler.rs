@@ -47,11 +47,19 @@ fn lease_commit_and_counts() {
         assert!(t.assets.iter().all(|(_, h)| h.len() == 64));
     }
     for t in &tasks {
-        assert!(matches!(s.check_upload("w1", &t.lease_id, &job, t.index).expect("check"), UploadCheck::Accept { .. }));
+        assert!(matches!(
+            s.check_upload("w1", &t.lease_id, &job, t.index)
+                .expect("check"),
+            UploadCheck::Accept { .. }
+        ));
         commit(&s, &job, t.index, 101.0);
     }
     // A second upload of a committed sample is acknowledged, not accepted again.
-    assert_eq!(s.check_upload("w1", &tasks[0].lease_id, &job, tasks[0].index).expect("check"), UploadCheck::AlreadyCommitted);
+    assert_eq!(
+        s.check_upload("w1", &tasks[0].lease_id, &job, tasks[0].index)
+            .expect("check"),
+        UploadCheck::AlreadyCommitted
+    );
     let st = s.job(&job, 101.0).expect("job");
     assert_eq!((st.queued, st.leased, st.done), (15, 0, 5));
 }
@@ -63,23 +71,45 @@ fn expired_leases_requeue_and_are_fenced() {
     let job = s.submit(SPEC, 0, 0.0).expect("submit").record.id;
     let a = s.lease("w1", 1, None, 0.0).expect("lease").remove(0);
     // Heartbeats keep it; silence past the 30 s lease loses it.
-    let (lost, _) = s.heartbeat("w1", std::slice::from_ref(&a.lease_id), 20.0).expect("hb");
+    let (lost, _) = s
+        .heartbeat("w1", std::slice::from_ref(&a.lease_id), 20.0)
+        .expect("hb");
     assert!(lost.is_empty());
-    assert_eq!(s.expire(45.0).expect("expire"), 0, "heartbeat extended the lease to 50 s");
+    assert_eq!(
+        s.expire(45.0).expect("expire"),
+        0,
+        "heartbeat extended the lease to 50 s"
+    );
     assert_eq!(s.expire(51.0).expect("expire"), 1);
-    let (lost, _) = s.heartbeat("w1", std::slice::from_ref(&a.lease_id), 52.0).expect("hb");
+    let (lost, _) = s
+        .heartbeat("w1", std::slice::from_ref(&a.lease_id), 52.0)
+        .expect("hb");
     assert_eq!(lost, vec![a.lease_id.clone()]);
     // Expired but not re-leased: the late result is still welcome.
-    assert!(matches!(s.check_upload("w1", &a.lease_id, &job, a.index).expect("check"), UploadCheck::Accept { .. }));
+    assert!(matches!(
+        s.check_upload("w1", &a.lease_id, &job, a.index)
+            .expect("check"),
+        UploadCheck::Accept { .. }
+    ));
     // Re-leased to w2: w1's result is fenced off, w2's accepted.
     let b = s.lease("w2", 1, None, 53.0).expect("lease").remove(0);
     assert_eq!(b.index, a.index, "requeued task goes first (lowest index)");
     assert_ne!(b.lease_id, a.lease_id);
-    let err = s.check_upload("w1", &a.lease_id, &job, a.index).expect_err("fenced");
+    let err = s
+        .check_upload("w1", &a.lease_id, &job, a.index)
+        .expect_err("fenced");
     assert!(err.to_string().contains("no longer current"), "{err}");
-    assert!(matches!(s.check_upload("w2", &b.lease_id, &job, b.index).expect("check"), UploadCheck::Accept { .. }));
+    assert!(matches!(
+        s.check_upload("w2", &b.lease_id, &job, b.index)
+            .expect("check"),
+        UploadCheck::Accept { .. }
+    ));
     // Unknown job and out-of-range index are errors naming them.
-    assert!(s.check_upload("w2", &b.lease_id, "nope", 0).expect_err("unknown").to_string().contains("nope"));
+    assert!(s
+        .check_upload("w2", &b.lease_id, "nope", 0)
+        .expect_err("unknown")
+        .to_string()
+        .contains("nope"));
     assert!(s.check_upload("w2", &b.lease_id, &job, 999).is_err());
 }
 
@@ -87,20 +117,33 @@ fn expired_leases_requeue_and_are_fenced() {
 fn failures_retry_elsewhere_then_fail_with_all_reasons() {
     let dir = tempfile::tempdir().expect("tmp");
     let (_db, s) = open(dir.path());
-    let job = s.submit(&SPEC.replace("count = 20", "count = 1"), 0, 0.0).expect("submit").record.id;
+    let job = s
+        .submit(&SPEC.replace("count = 20", "count = 1"), 0, 0.0)
+        .expect("submit")
+        .record
+        .id;
     for (i, w) in ["w1", "w2", "w3"].iter().enumerate() {
         let t = s.lease(w, 1, None, i as f64).expect("lease");
         assert_eq!(t.len(), 1, "{w} gets the task");
         // The worker that failed it never gets it again.
         assert!(s.lease(w, 1, None, i as f64).expect("lease").is_empty());
-        let retry = s.fail(w, &t[0].lease_id, &format!("boom on {w}"), i as f64).expect("fail");
+        let retry = s
+            .fail(w, &t[0].lease_id, &format!("boom on {w}"), i as f64)
+            .expect("fail");
         assert_eq!(retry, i < 2, "retried until 3 distinct workers failed it");
-        assert!(s.lease(w, 1, None, i as f64).expect("lease").is_empty(), "{w} never gets it back");
+        assert!(
+            s.lease(w, 1, None, i as f64).expect("lease").is_empty(),
+            "{w} never gets it back"
+        );
     }
     let st = s.job(&job, 3.0).expect("job");
     assert_eq!((st.queued, st.failed, st.done), (0, 1, 0));
     assert!(st.finished());
-    let reasons: Vec<&str> = st.recent_failures.iter().map(|(_, f)| f.reason.as_str()).collect();
+    let reasons: Vec<&str> = st
+        .recent_failures
+        .iter()
+        .map(|(_, f)| f.reason.as_str())
+        .collect();
     assert_eq!(reasons, ["boom on w1", "boom on w2", "boom on w3"]);
     // Failing with a lease one does not hold is refused.
     assert!(s.fail("w9", "unit-0.0.1", "x", 4.0).is_err());
@@ -113,11 +156,20 @@ fn repeated_failures_blocklist_a_worker_for_the_job() {
     let job = s.submit(SPEC, 0, 0.0).expect("submit").record.id;
     for _ in 0..BLOCKLIST_AFTER {
         let t = s.lease("bad", 1, None, 0.0).expect("lease").remove(0);
-        s.fail("bad", &t.lease_id, "driver crash", 0.0).expect("fail");
+        s.fail("bad", &t.lease_id, "driver crash", 0.0)
+            .expect("fail");
     }
-    assert!(s.lease("bad", 4, None, 1.0).expect("lease").is_empty(), "blocklisted");
+    assert!(
+        s.lease("bad", 4, None, 1.0).expect("lease").is_empty(),
+        "blocklisted"
+    );
     assert_eq!(s.lease("good", 4, None, 1.0).expect("lease").len(), 4);
-    assert!(s.job(&job, 1.0).expect("job").record.blocklist.contains("bad"));
+    assert!(s
+        .job(&job, 1.0)
+        .expect("job")
+        .record
+        .blocklist
+        .contains("bad"));
 }
 
 #[test]
@@ -132,28 +184,54 @@ fn locality_priority_pause_and_cancel() {
         v["head"]["blake3"].as_str().unwrap_or_default().to_string()
     };
     let wanted = head_of(&all[all.len() - 1]);
-    let expected: Vec<u64> = all.iter().filter(|t| head_of(t) == wanted).map(|t| t.index).collect();
+    let expected: Vec<u64> = all
+        .iter()
+        .filter(|t| head_of(t) == wanted)
+        .map(|t| t.index)
+        .collect();
     for t in &all {
         s.fail("probe", &t.lease_id, "probe", 0.0).expect("release");
     }
-    let got = s.lease("local", expected.len() as u32, Some(vec![wanted.clone()]), 1.0).expect("lease");
-    assert_eq!(got.iter().map(|t| t.index).collect::<Vec<_>>(), expected, "same-head samples first");
+    let got = s
+        .lease(
+            "local",
+            expected.len() as u32,
+            Some(vec![wanted.clone()]),
+            1.0,
+        )
+        .expect("lease");
+    assert_eq!(
+        got.iter().map(|t| t.index).collect::<Vec<_>>(),
+        expected,
+        "same-head samples first"
+    );
 
     // Priority: a higher-priority job leases before an older one.
     let high = s.submit(SPEC, 10, 2.0).expect("submit").record.id;
     let t = s.lease("w", 1, None, 2.0).expect("lease");
     assert_eq!(t[0].job_id, high);
     // Paused: no leases from it; resumed: again.
-    s.set_run_state(&high, RunState::Paused, 3.0).expect("pause");
+    s.set_run_state(&high, RunState::Paused, 3.0)
+        .expect("pause");
     assert_eq!(s.lease("w", 1, None, 3.0).expect("lease")[0].job_id, low);
-    s.set_run_state(&high, RunState::Running, 4.0).expect("resume");
+    s.set_run_state(&high, RunState::Running, 4.0)
+        .expect("resume");
     assert_eq!(s.lease("w", 1, None, 4.0).expect("lease")[0].job_id, high);
     // Cancelled: no leases, heartbeats lose the leases, uploads refused, cannot resume.
-    s.set_run_state(&high, RunState::Cancelled, 5.0).expect("cancel");
-    assert!(s.lease("w", 50, None, 5.0).expect("lease").iter().all(|t| t.job_id == low));
-    let (lost, _) = s.heartbeat("w", std::slice::from_ref(&t[0].lease_id), 5.0).expect("hb");
+    s.set_run_state(&high, RunState::Cancelled, 5.0)
+        .expect("cancel");
+    assert!(s
+        .lease("w", 50, None, 5.0)
+        .expect("lease")
+        .iter()
+        .all(|t| t.job_id == low));
+    let (lost, _) = s
+        .heartbeat("w", std::slice::from_ref(&t[0].lease_id), 5.0)
+        .expect("hb");
     assert_eq!(lost.len(), 1);
-    assert!(s.check_upload("w", &t[0].lease_id, &high, t[0].index).is_err());
+    assert!(s
+        .check_upload("w", &t[0].lease_id, &high, t[0].index)
+        .is_err());
     assert!(s.set_run_state(&high, RunState::Running, 6.0).is_err());
     assert!(s.job(&high, 6.0).expect("job").finished());
 }
@@ -176,13 +254,25 @@ fn a_restart_keeps_jobs_live_leases_and_commits() {
     assert_eq!((st.done, st.leased, st.queued), (1, 2, 17));
     // The live leases are honoured: their holder can still upload, and they expire on time.
     for t in &leased {
-        assert!(matches!(s.check_upload("w1", &t.lease_id, &job, t.index).expect("check"), UploadCheck::Accept { .. }));
+        assert!(matches!(
+            s.check_upload("w1", &t.lease_id, &job, t.index)
+                .expect("check"),
+            UploadCheck::Accept { .. }
+        ));
     }
-    assert_eq!(s.check_upload("w1", "x", &job, committed).expect("check"), UploadCheck::AlreadyCommitted);
+    assert_eq!(
+        s.check_upload("w1", "x", &job, committed).expect("check"),
+        UploadCheck::AlreadyCommitted
+    );
     assert_eq!(s.expire(29.0).expect("expire"), 0);
     assert_eq!(s.expire(31.0).expect("expire"), 2);
     // The failure record survived: w2 does not get that task again.
-    let again: Vec<u64> = s.lease("w2", 20, None, 32.0).expect("lease").iter().map(|t| t.index).collect();
+    let again: Vec<u64> = s
+        .lease("w2", 20, None, 32.0)
+        .expect("lease")
+        .iter()
+        .map(|t| t.index)
+        .collect();
     assert_eq!(again.len(), 18);
 }
 

@@ -19,18 +19,24 @@ pub struct AssetCache {
 }
 
 fn valid_hash(h: &str) -> bool {
-    h.len() == 64 && h.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+    h.len() == 64
+        && h.bytes()
+            .all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
 }
 
 impl AssetCache {
     pub fn open(root: &Path) -> Result<AssetCache> {
-        std::fs::create_dir_all(root.join("blobs")).with_context(|| format!("asset cache {}", root.display()))?;
+        std::fs::create_dir_all(root.join("blobs"))
+            .with_context(|| format!("asset cache {}", root.display()))?;
         std::fs::create_dir_all(root.join("tmp"))?;
         // Partial downloads of a killed worker.
         for e in std::fs::read_dir(root.join("tmp"))?.flatten() {
             let _ = std::fs::remove_file(e.path());
         }
-        Ok(AssetCache { root: root.to_path_buf(), fetching: Mutex::new(()) })
+        Ok(AssetCache {
+            root: root.to_path_buf(),
+            fetching: Mutex::new(()),
+        })
     }
 
     fn blob(&self, hash: &str) -> PathBuf {
@@ -65,7 +71,9 @@ impl AssetCache {
             return Ok(path);
         }
         let tmp = self.root.join("tmp").join(format!("{hash}.part"));
-        let req = pb::FetchAssetRequest { blake3: hash.to_string() };
+        let req = pb::FetchAssetRequest {
+            blake3: hash.to_string(),
+        };
         let bytes = client
             .retry(&format!("fetch asset {hash}"), false, |mut c| {
                 let req = req.clone();
@@ -82,7 +90,10 @@ impl AssetCache {
             .context("fetch stopped")?;
         let got = blake3::hash(&bytes).to_hex().to_string();
         if got != hash {
-            bail!("asset {hash} arrived with blake3 {got} ({} bytes): corrupt transfer", bytes.len());
+            bail!(
+                "asset {hash} arrived with blake3 {got} ({} bytes): corrupt transfer",
+                bytes.len()
+            );
         }
         let mut f = std::fs::File::create(&tmp).with_context(|| tmp.display().to_string())?;
         f.write_all(&bytes)?;
@@ -94,7 +105,11 @@ impl AssetCache {
 
     /// A directory holding the catalog file and links from the given assets' catalog paths to
     /// their cached blobs, loaded as a [`Catalog`] (ids resolve to files, hashes are checked).
-    pub fn materialize_catalog(&self, catalog_hash: &str, assets: &[pb::AssetRef]) -> Result<Catalog> {
+    pub fn materialize_catalog(
+        &self,
+        catalog_hash: &str,
+        assets: &[pb::AssetRef],
+    ) -> Result<Catalog> {
         let dir = self.root.join("catalogs").join(catalog_hash);
         std::fs::create_dir_all(&dir)?;
         let file = dir.join(lightfarm_scene::catalog::CATALOG_FILE);
@@ -103,7 +118,11 @@ impl AssetCache {
         }
         let catalog = Catalog::load(&file)?;
         let wanted: HashSet<&str> = assets.iter().map(|a| a.blake3.as_str()).collect();
-        for asset in catalog.assets.iter().filter(|a| wanted.contains(a.blake3.as_str())) {
+        for asset in catalog
+            .assets
+            .iter()
+            .filter(|a| wanted.contains(a.blake3.as_str()))
+        {
             let target = catalog.path_of(asset);
             if !target.exists() {
                 if let Some(parent) = target.parent() {
@@ -120,7 +139,8 @@ impl AssetCache {
 fn link(from: &Path, to: &Path) -> Result<()> {
     if std::fs::hard_link(from, to).is_err() {
         let tmp = to.with_extension("part");
-        std::fs::copy(from, &tmp).with_context(|| format!("{} -> {}", from.display(), tmp.display()))?;
+        std::fs::copy(from, &tmp)
+            .with_context(|| format!("{} -> {}", from.display(), tmp.display()))?;
         std::fs::rename(&tmp, to)?;
     }
     Ok(())

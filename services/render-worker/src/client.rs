@@ -45,7 +45,14 @@ pub fn channel(url: &str, token: &str, tls_ca: Option<&Path>) -> Result<(Channel
 
 /// Errors worth waiting out: the coordinator is restarting or the network is cut.
 pub fn transient(status: &Status) -> bool {
-    matches!(status.code(), Code::Unavailable | Code::DeadlineExceeded | Code::Unknown | Code::Cancelled | Code::Aborted)
+    matches!(
+        status.code(),
+        Code::Unavailable
+            | Code::DeadlineExceeded
+            | Code::Unknown
+            | Code::Cancelled
+            | Code::Aborted
+    )
 }
 
 #[derive(Clone)]
@@ -55,7 +62,12 @@ pub struct Client {
 }
 
 impl Client {
-    pub async fn connect(url: &str, token: &str, tls_ca: Option<&Path>, stop: watch::Receiver<bool>) -> Result<Client> {
+    pub async fn connect(
+        url: &str,
+        token: &str,
+        tls_ca: Option<&Path>,
+        stop: watch::Receiver<bool>,
+    ) -> Result<Client> {
         let (ch, auth) = channel(url, token, tls_ca)?;
         Ok(Client {
             inner: WorkersClient::with_interceptor(ch, auth).max_decoding_message_size(64 << 20),
@@ -69,7 +81,12 @@ impl Client {
 
     /// Runs `f` until it succeeds or fails for a non-transient reason. While the coordinator
     /// is unreachable, waits with backoff (up to 5 s); with `until_stop`, gives up on shutdown.
-    pub async fn retry<T, F, Fut>(&self, what: &str, until_stop: bool, mut f: F) -> Result<Option<T>>
+    pub async fn retry<T, F, Fut>(
+        &self,
+        what: &str,
+        until_stop: bool,
+        mut f: F,
+    ) -> Result<Option<T>>
     where
         F: FnMut(Workers) -> Fut,
         Fut: std::future::Future<Output = Result<T, Status>>,
@@ -89,7 +106,10 @@ impl Client {
                 }
                 Err(s) if transient(&s) => {
                     if !warned {
-                        tracing::warn!("{what}: coordinator unreachable ({}); retrying", s.message());
+                        tracing::warn!(
+                            "{what}: coordinator unreachable ({}); retrying",
+                            s.message()
+                        );
                         warned = true;
                     }
                     if until_stop && *self.stop.borrow() {
@@ -104,7 +124,12 @@ impl Client {
         }
     }
 
-    pub async fn register(&self, name: &str, device: &str, cached: Vec<String>) -> Result<pb::RegisterWorkerResponse> {
+    pub async fn register(
+        &self,
+        name: &str,
+        device: &str,
+        cached: Vec<String>,
+    ) -> Result<pb::RegisterWorkerResponse> {
         let req = pb::RegisterWorkerRequest {
             name: name.to_string(),
             device: device.to_string(),
@@ -120,7 +145,12 @@ impl Client {
     }
 
     /// Leases up to `capacity` tasks; empty on shutdown while the coordinator is away.
-    pub async fn lease(&self, worker: &str, capacity: u32, cached: Vec<String>) -> Result<Vec<pb::Task>> {
+    pub async fn lease(
+        &self,
+        worker: &str,
+        capacity: u32,
+        cached: Vec<String>,
+    ) -> Result<Vec<pb::Task>> {
         let req = pb::LeaseTasksRequest {
             worker_id: worker.to_string(),
             capacity,
@@ -141,10 +171,19 @@ impl Client {
             worker_id: worker.to_string(),
             leases: leases
                 .iter()
-                .map(|l| pb::LeaseProgress { lease_id: l.clone(), progress: 0.0 })
+                .map(|l| pb::LeaseProgress {
+                    lease_id: l.clone(),
+                    progress: 0.0,
+                })
                 .collect(),
         };
-        Ok(self.inner.clone().heartbeat(req).await?.into_inner().lost_leases)
+        Ok(self
+            .inner
+            .clone()
+            .heartbeat(req)
+            .await?
+            .into_inner()
+            .lost_leases)
     }
 
     pub async fn fail(&self, worker: &str, lease: &str, reason: &str) -> Result<bool> {

@@ -46,7 +46,10 @@ pub struct WorkerConfig {
 }
 
 /// Runs the pull loop until `shutdown` resolves (then drains) or `max_samples` are done.
-pub async fn run(config: WorkerConfig, shutdown: impl Future<Output = ()> + Send + 'static) -> Result<()> {
+pub async fn run(
+    config: WorkerConfig,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> Result<()> {
     let (stop_tx, stop) = watch::channel(false);
     tokio::spawn(async move {
         shutdown.await;
@@ -62,11 +65,19 @@ pub async fn run(config: WorkerConfig, shutdown: impl Future<Output = ()> + Send
     let device_name = format!("{} ({})", renderer.device().name, renderer.device().kind);
     let cache = Arc::new(AssetCache::open(&config.cache_dir.join("assets"))?);
     let outbox = Arc::new(Outbox::open(&config.cache_dir.join("outbox"))?);
-    let client = Client::connect(&config.coordinator, &config.token, config.tls_ca.as_deref(), stop.clone()).await?;
+    let client = Client::connect(
+        &config.coordinator,
+        &config.token,
+        config.tls_ca.as_deref(),
+        stop.clone(),
+    )
+    .await?;
 
     // Whatever a previous run finished but could not upload goes first.
     outbox.flush(&client).await?;
-    let reg = client.register(&config.name, &device_name, cache.hashes()?).await?;
+    let reg = client
+        .register(&config.name, &device_name, cache.hashes()?)
+        .await?;
     tracing::info!(worker = %reg.worker_id, device = %device_name, lease_s = reg.lease_seconds, "registered");
     let heartbeat = Duration::from_secs(u64::from(reg.heartbeat_seconds.max(1)));
 
@@ -120,7 +131,11 @@ pub fn render_to_exr(
         "renderer": RENDERER_VERSION,
         "sample": serde_json::from_str::<serde_json::Value>(sample_json)?,
     });
-    write_exr(path, &out, &[("lightfarm.sample".to_string(), meta.to_string())])?;
+    write_exr(
+        path,
+        &out,
+        &[("lightfarm.sample".to_string(), meta.to_string())],
+    )?;
     Ok(serde_json::to_string(&out.stats)?)
 }
 
@@ -144,7 +159,8 @@ async fn render_task(
         cache.ensure(client, &asset.blake3).await?;
     }
     let catalog = cache.materialize_catalog(&catalog_hash, &task.assets)?;
-    let sample: SampleSpec = serde_json::from_str(&task.sample_json).context("the task's sample JSON")?;
+    let sample: SampleSpec =
+        serde_json::from_str(&task.sample_json).context("the task's sample JSON")?;
 
     // Heartbeats until the render is done.
     let (hb_stop, mut hb_rx) = watch::channel(false);
@@ -156,7 +172,10 @@ async fn render_task(
                 _ = tokio::time::sleep(heartbeat) => {}
                 _ = hb_rx.changed() => return,
             }
-            match hb_client.heartbeat(&worker, std::slice::from_ref(&lease)).await {
+            match hb_client
+                .heartbeat(&worker, std::slice::from_ref(&lease))
+                .await
+            {
                 Ok(lost) if lost.contains(&lease) => {
                     tracing::warn!(lease = %lease, "lease lost while rendering; the result will be offered anyway");
                 }

@@ -33,7 +33,16 @@ pub struct Outbox {
 
 fn stem(job: &str, index: u64) -> String {
     // Job ids are [a-z0-9-]; keep anything else out of file names anyway.
-    let job: String = job.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
+    let job: String = job
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
     format!("{job}__{index:010}")
 }
 
@@ -44,13 +53,19 @@ impl Outbox {
         std::fs::create_dir_all(dir).with_context(|| format!("outbox {}", dir.display()))?;
         for e in std::fs::read_dir(dir)?.flatten() {
             let p = e.path();
-            let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("").to_string();
+            let name = p
+                .file_name()
+                .and_then(|n| n.to_str())
+                .unwrap_or("")
+                .to_string();
             let complete_exr = name.ends_with(".exr") && p.with_extension("json").is_file();
             if !(name.ends_with(".json") || complete_exr) {
                 let _ = std::fs::remove_file(&p);
             }
         }
-        Ok(Outbox { dir: dir.to_path_buf() })
+        Ok(Outbox {
+            dir: dir.to_path_buf(),
+        })
     }
 
     pub fn exr_path(&self, job: &str, index: u64) -> PathBuf {
@@ -58,7 +73,13 @@ impl Outbox {
     }
 
     /// Records a rendered EXR as an entry (hash, size, lease) ready to upload.
-    pub fn commit_entry(&self, exr: &Path, worker: &str, task: &pb::Task, stats_json: &str) -> Result<OutboxEntry> {
+    pub fn commit_entry(
+        &self,
+        exr: &Path,
+        worker: &str,
+        task: &pb::Task,
+        stats_json: &str,
+    ) -> Result<OutboxEntry> {
         let bytes = std::fs::read(exr).with_context(|| exr.display().to_string())?;
         let mut entry = OutboxEntry {
             worker_id: worker.to_string(),
@@ -125,13 +146,23 @@ impl Outbox {
             stats_json: entry.stats_json.clone(),
         };
         let result = client
-            .retry(&format!("upload {}#{}", entry.job_id, entry.index), false, |mut c| {
-                let mut msgs = vec![pb::UploadChunk { kind: Some(pb::upload_chunk::Kind::Header(header.clone())) }];
-                msgs.extend(bytes.chunks(CHUNK).map(|b| pb::UploadChunk {
-                    kind: Some(pb::upload_chunk::Kind::Data(b.to_vec())),
-                }));
-                async move { c.upload_sample(tokio_stream::iter(msgs)).await.map(|r| r.into_inner()) }
-            })
+            .retry(
+                &format!("upload {}#{}", entry.job_id, entry.index),
+                false,
+                |mut c| {
+                    let mut msgs = vec![pb::UploadChunk {
+                        kind: Some(pb::upload_chunk::Kind::Header(header.clone())),
+                    }];
+                    msgs.extend(bytes.chunks(CHUNK).map(|b| pb::UploadChunk {
+                        kind: Some(pb::upload_chunk::Kind::Data(b.to_vec())),
+                    }));
+                    async move {
+                        c.upload_sample(tokio_stream::iter(msgs))
+                            .await
+                            .map(|r| r.into_inner())
+                    }
+                },
+            )
             .await;
         match result {
             Ok(Some(r)) => {
@@ -142,7 +173,15 @@ impl Outbox {
             Ok(None) => Ok(()),
             Err(e) => {
                 let code = e.downcast_ref::<tonic::Status>().map(|s| s.code());
-                if matches!(code, Some(Code::FailedPrecondition | Code::NotFound | Code::InvalidArgument | Code::DataLoss)) {
+                if matches!(
+                    code,
+                    Some(
+                        Code::FailedPrecondition
+                            | Code::NotFound
+                            | Code::InvalidArgument
+                            | Code::DataLoss
+                    )
+                ) {
                     tracing::warn!(job = %entry.job_id, index = entry.index, "coordinator refused the result, dropping it: {e:#}");
                     self.remove(entry);
                     Ok(())
