@@ -300,3 +300,43 @@ fn killing_the_coordinator_mid_job_loses_nothing() {
     }
     check_exactly_once_and_bit_identical(&api, &job, dir.path());
 }
+
+#[test]
+fn sigterm_drains_a_worker() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let port = free_port();
+    let _coord = coordinator(dir.path(), port, "coordinator");
+    let api = Api::new(port);
+    let job = api.submit();
+    let mut w = worker(dir.path(), port, "wd");
+    let before = done(
+        &api.wait_for(&job, "a first commit", Duration::from_secs(300), |j| {
+            done(j) >= 1
+        }),
+    );
+    let pid = w.0.id().to_string();
+    let status = Command::new("kill")
+        .args(["-TERM", &pid])
+        .status()
+        .expect("kill -TERM");
+    assert!(status.success());
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let exit = loop {
+        if let Some(s) = w.0.try_wait().expect("wait") {
+            break s;
+        }
+        assert!(Instant::now() < deadline, "worker did not drain and exit");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert!(exit.success(), "drained worker exits cleanly: {exit:?}");
+    // The sample it was rendering was finished and uploaded, not left to expire.
+    let job_now = api.job(&job).expect("job");
+    let counts = job_now.counts.expect("counts");
+    assert_eq!(counts.leased, 0, "no lease left behind: {counts:?}");
+    assert!(
+        counts.done > before,
+        "the in-flight sample was committed: {counts:?}"
+    );
+    let log = std::fs::read_to_string(dir.path().join("wd.log")).unwrap_or_default();
+    assert!(log.contains("shutdown requested"), "{log}");
+}

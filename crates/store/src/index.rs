@@ -84,6 +84,10 @@ pub struct SampleIndex {
     counts: sled::Tree,
     meta: sled::Tree,
     latest: Arc<watch::Sender<u64>>,
+    /// Commits take this first. Every commit reads and bumps the same sequence counter, so
+    /// concurrent sled transactions would all conflict and retry; queueing them on a lock
+    /// costs less (a commit holds it for microseconds). Clones share it.
+    commit_lock: Arc<std::sync::Mutex<()>>,
 }
 
 fn job_prefix(job_id: &str) -> Vec<u8> {
@@ -144,6 +148,7 @@ impl SampleIndex {
             counts,
             meta,
             latest: Arc::new(tx),
+            commit_lock: Arc::new(std::sync::Mutex::new(())),
         })
     }
 
@@ -179,6 +184,9 @@ impl SampleIndex {
             committed_unix: now_unix,
             sequence: 0,
         };
+        // A poisoned lock only means another commit panicked; the transaction below is still
+        // all-or-nothing, so carry on.
+        let _serial = self.commit_lock.lock().unwrap_or_else(|p| p.into_inner());
         let result = (&self.samples, &self.by_seq, &self.counts, &self.meta).transaction(
             |(samples, by_seq, counts, meta)| {
                 if let Some(existing) = samples.get(&key)? {

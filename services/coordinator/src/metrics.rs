@@ -19,6 +19,7 @@ pub struct Metrics {
     leased_now: IntGauge,
     done: IntGauge,
     failed: IntGauge,
+    samples_per_second: prometheus::Gauge,
 }
 
 // Metric names are the constants below; creating or registering them fails only for an
@@ -91,6 +92,17 @@ impl Metrics {
             leased_now: gauge(&registry, "lightfarm_tasks_leased", "Tasks being rendered"),
             done: gauge(&registry, "lightfarm_tasks_done", "Tasks committed"),
             failed: gauge(&registry, "lightfarm_tasks_failed", "Tasks failed for good"),
+            samples_per_second: {
+                let g = prometheus::Gauge::new(
+                    "lightfarm_samples_per_second",
+                    "Commits per second over the last minute, all jobs",
+                )
+                .expect("valid static metric name");
+                registry
+                    .register(Box::new(g.clone()))
+                    .expect("unique metric name");
+                g
+            },
             registry,
         }
     }
@@ -102,6 +114,14 @@ impl Metrics {
         self.leased_now.set(l as i64);
         self.done.set(d as i64);
         self.failed.set(f as i64);
+        let now = crate::service::now_unix();
+        self.samples_per_second.set(
+            scheduler
+                .jobs(now)
+                .iter()
+                .map(|j| j.samples_per_second)
+                .sum(),
+        );
         let mut buf = Vec::new();
         let _ = TextEncoder::new().encode(&self.registry.gather(), &mut buf);
         String::from_utf8_lossy(&buf).into_owned()

@@ -27,6 +27,7 @@ glasses_probability = 0.5
 
 struct Running {
     addr: String,
+    metrics_addr: std::net::SocketAddr,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     handle: tokio::task::JoinHandle<()>,
     dir: tempfile::TempDir,
@@ -48,6 +49,16 @@ async fn start(max_upload: u64) -> Running {
         .await
         .expect("bind");
     let addr = format!("http://{}", listener.local_addr().expect("addr"));
+    let metrics_listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("bind");
+    let metrics_addr = metrics_listener.local_addr().expect("addr");
+    tokio::spawn(lightfarm_coordinator::metrics::serve_metrics(
+        metrics_listener,
+        coordinator.metrics().clone(),
+        coordinator.scheduler().clone(),
+        std::future::pending(),
+    ));
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
     let handle = tokio::spawn(async move {
         coordinator
@@ -59,6 +70,7 @@ async fn start(max_upload: u64) -> Running {
     });
     Running {
         addr,
+        metrics_addr,
         stop: Some(tx),
         handle,
         dir,
@@ -251,8 +263,32 @@ async fn a_dataset_renders_commits_once_and_exports() {
         assert!(s.json["sample"]["head"]["blake3"].is_string());
     }
 
+    // Prometheus text on /metrics reflects the job.
+    let text = http_get(c.metrics_addr, "/metrics").await;
+    for line in [
+        "lightfarm_samples_committed_total 6",
+        "lightfarm_tasks_done 6",
+        "lightfarm_tasks_queued 0",
+    ] {
+        assert!(text.contains(line), "{line} missing in:\n{text}");
+    }
+    assert!(text.contains("lightfarm_lease_seconds_bucket"));
+
     let _ = c.stop.take().map(|s| s.send(()));
     c.handle.await.expect("server");
+}
+
+/// A minimal HTTP/1.1 GET (the test needs no HTTP client crate).
+async fn http_get(addr: std::net::SocketAddr, path: &str) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut s = tokio::net::TcpStream::connect(addr).await.expect("connect");
+    s.write_all(format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n").as_bytes())
+        .await
+        .expect("write");
+    let mut buf = String::new();
+    s.read_to_string(&mut buf).await.expect("read");
+    assert!(buf.starts_with("HTTP/1.1 200"), "{buf}");
+    buf
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -430,4 +466,64 @@ async fn bad_input_gets_clear_codes_and_stores_nothing() {
 
     let _ = c.stop.take().map(|s| s.send(()));
     c.handle.await.expect("server");
+}
+
+/// TLS: a coordinator started with a certificate serves only TLS; a client trusting that
+/// certificate works, a plain-text client does not.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tls_serves_clients_that_trust_the_certificate() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let cert = rcgen::generate_simple_self_signed(vec!["localhost".to_string()])
+        .expect("self-signed certificate");
+    let (cert_path, key_path) = (dir.path().join("cert.pem"), dir.path().join("key.pem"));
+    std::fs::write(&cert_path, cert.cert.pem()).expect("write cert");
+    std::fs::write(&key_path, cert.key_pair.serialize_pem()).expect("write key");
+    let mut config = CoordinatorConfig::new(
+        dir.path().join("data"),
+        TOKEN.into(),
+        Catalog::builtin().expect("catalog"),
+    );
+    config.tls = Some((cert_path.clone(), key_path));
+    let coordinator = tokio::task::spawn_blocking(move || Coordinator::open(config))
+        .await
+        .expect("join")
+        .expect("open");
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("bind");
+    let port = listener.local_addr().expect("addr").port();
+    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+    let handle = tokio::spawn(async move {
+        coordinator
+            .serve(listener, async {
+                let _ = rx.await;
+            })
+            .await
+            .expect("serve");
+    });
+
+    let (ch, auth) = lightfarm_worker::client::channel(
+        &format!("https://localhost:{port}"),
+        TOKEN,
+        Some(&cert_path),
+    )
+    .expect("tls channel");
+    let mut jobs = pb::jobs_client::JobsClient::with_interceptor(ch, auth);
+    let listed = jobs
+        .list_jobs(pb::ListJobsRequest {})
+        .await
+        .expect("TLS call");
+    assert!(listed.into_inner().jobs.is_empty());
+
+    let (plain, auth) =
+        lightfarm_worker::client::channel(&format!("http://localhost:{port}"), TOKEN, None)
+            .expect("channel");
+    let mut plain = pb::jobs_client::JobsClient::with_interceptor(plain, auth);
+    assert!(
+        plain.list_jobs(pb::ListJobsRequest {}).await.is_err(),
+        "plain text is refused"
+    );
+
+    let _ = tx.send(());
+    handle.await.expect("server");
 }
