@@ -102,7 +102,10 @@ impl Client {
                     return Ok(Some(v));
                 }
                 Err(s) if s.code() == Code::Unauthenticated => {
-                    bail!("the coordinator refused this worker's token ({}): start the worker with the coordinator's --token / LIGHTFARM_TOKEN", s.message())
+                    bail!(
+                        "the coordinator refused this worker's token: {}",
+                        s.message()
+                    )
                 }
                 Err(s) if transient(&s) => {
                     if !warned {
