@@ -9,6 +9,7 @@ use clap::{Args, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use lightfarm_proto::v1 as pb;
 use lightfarm_scene::Catalog;
+use lightfarm_worker::client::{channel, AuthedChannel};
 
 pub const DEFAULT_COORDINATOR: &str = "http://127.0.0.1:7070";
 
@@ -258,33 +259,14 @@ async fn serve_worker(a: WorkerArgs) -> Result<()> {
 
 // ------------------------------------------------------------------ clients
 
-async fn jobs_client(
-    c: &Connect,
-) -> Result<
-    pb::jobs_client::JobsClient<
-        tonic::codegen::InterceptedService<
-            tonic::transport::Channel,
-            lightfarm_worker::client::Auth,
-        >,
-    >,
-> {
-    let (ch, auth) =
-        lightfarm_worker::client::channel(&c.coordinator, &c.token, c.tls_ca.as_deref())?;
+/// Clients on a lazily connected channel carrying the token (call inside the runtime).
+fn jobs_client(c: &Connect) -> Result<pb::jobs_client::JobsClient<AuthedChannel>> {
+    let (ch, auth) = channel(&c.coordinator, &c.token, c.tls_ca.as_deref())?;
     Ok(pb::jobs_client::JobsClient::with_interceptor(ch, auth))
 }
 
-async fn samples_client(
-    c: &Connect,
-) -> Result<
-    pb::samples_client::SamplesClient<
-        tonic::codegen::InterceptedService<
-            tonic::transport::Channel,
-            lightfarm_worker::client::Auth,
-        >,
-    >,
-> {
-    let (ch, auth) =
-        lightfarm_worker::client::channel(&c.coordinator, &c.token, c.tls_ca.as_deref())?;
+fn samples_client(c: &Connect) -> Result<pb::samples_client::SamplesClient<AuthedChannel>> {
+    let (ch, auth) = channel(&c.coordinator, &c.token, c.tls_ca.as_deref())?;
     Ok(
         pb::samples_client::SamplesClient::with_interceptor(ch, auth)
             .max_decoding_message_size(64 << 20),
@@ -314,7 +296,7 @@ pub fn submit(a: SubmitArgs) -> Result<()> {
     let text = std::fs::read_to_string(&a.spec)
         .with_context(|| format!("reading {}", a.spec.display()))?;
     runtime()?.block_on(async {
-        let mut c = jobs_client(&a.connect).await?;
+        let mut c = jobs_client(&a.connect)?;
         let job = c
             .submit_dataset(pb::SubmitDatasetRequest {
                 spec: Some(pb::submit_dataset_request::Spec::Toml(text)),
@@ -335,7 +317,7 @@ pub fn submit(a: SubmitArgs) -> Result<()> {
 
 pub fn watch(a: JobArgs) -> Result<()> {
     runtime()?.block_on(async {
-        let mut c = jobs_client(&a.connect).await?;
+        let mut c = jobs_client(&a.connect)?;
         let mut stream = c
             .watch_job(pb::JobRef {
                 job_id: a.job.clone(),
@@ -402,7 +384,7 @@ pub fn watch(a: JobArgs) -> Result<()> {
 
 pub fn jobs(a: JobsArgs) -> Result<()> {
     runtime()?.block_on(async {
-        let mut c = jobs_client(&a.connect).await?;
+        let mut c = jobs_client(&a.connect)?;
         let jobs = c
             .list_jobs(pb::ListJobsRequest {})
             .await
@@ -432,7 +414,7 @@ pub fn jobs(a: JobsArgs) -> Result<()> {
 
 pub fn job_action(a: JobArgs, action: &str) -> Result<()> {
     runtime()?.block_on(async {
-        let mut c = jobs_client(&a.connect).await?;
+        let mut c = jobs_client(&a.connect)?;
         let r = pb::JobRef {
             job_id: a.job.clone(),
         };
@@ -450,7 +432,7 @@ pub fn job_action(a: JobArgs, action: &str) -> Result<()> {
 
 pub fn samples(a: SamplesArgs) -> Result<()> {
     runtime()?.block_on(async {
-        let mut c = samples_client(&a.connect).await?;
+        let mut c = samples_client(&a.connect)?;
         let r = c
             .list_samples(pb::ListSamplesRequest {
                 job_id: a.job.clone().unwrap_or_default(),
@@ -479,7 +461,7 @@ pub fn samples(a: SamplesArgs) -> Result<()> {
 /// Streams a job's committed samples and writes them in the chosen export format.
 pub fn export(a: ExportArgs) -> Result<()> {
     runtime()?.block_on(async {
-        let mut c = samples_client(&a.connect).await?;
+        let mut c = samples_client(&a.connect)?;
         let mut stream = c
             .stream_samples(pb::StreamSamplesRequest {
                 job_id: a.job.clone(),

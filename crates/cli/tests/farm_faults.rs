@@ -97,14 +97,7 @@ impl Api {
         }
     }
 
-    fn jobs(
-        &self,
-    ) -> pb::jobs_client::JobsClient<
-        tonic::codegen::InterceptedService<
-            tonic::transport::Channel,
-            lightfarm_worker::client::Auth,
-        >,
-    > {
+    fn jobs(&self) -> pb::jobs_client::JobsClient<lightfarm_worker::client::AuthedChannel> {
         // A lazy channel needs the runtime's reactor to exist.
         let _in_runtime = self.rt.enter();
         let (ch, auth) =

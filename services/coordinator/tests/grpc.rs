@@ -7,8 +7,6 @@ use std::time::Duration;
 use lightfarm_coordinator::{Coordinator, CoordinatorConfig};
 use lightfarm_proto::v1 as pb;
 use lightfarm_scene::Catalog;
-use tonic::codegen::InterceptedService;
-use tonic::transport::Channel;
 use tonic::Code;
 
 const TOKEN: &str = "test-token";
@@ -77,7 +75,7 @@ async fn start(max_upload: u64) -> Running {
     }
 }
 
-type Authed = InterceptedService<Channel, lightfarm_worker::client::Auth>;
+type Authed = lightfarm_worker::client::AuthedChannel;
 
 fn clients(
     addr: &str,

@@ -23,7 +23,10 @@ impl tonic::service::Interceptor for Auth {
     }
 }
 
-pub type Workers = WorkersClient<InterceptedService<Channel, Auth>>;
+/// A channel whose every call carries the bearer token; any generated client wraps it.
+pub type AuthedChannel = InterceptedService<Channel, Auth>;
+
+pub type Workers = WorkersClient<AuthedChannel>;
 
 /// Connects lazily (the coordinator may not be up yet) to `url` with bearer `token`.
 pub fn channel(url: &str, token: &str, tls_ca: Option<&Path>) -> Result<(Channel, Auth)> {
