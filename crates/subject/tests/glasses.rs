@@ -1,9 +1,9 @@
 //! Procedural glasses, anchors of any glasses model, and their fit to real heads.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
-use glam::{Mat3, Vec3};
+use glam::Vec3;
 use lightfarm_render::scene::{shapes, write_glb, Material, Scene};
 use lightfarm_subject::glasses::{
     fit_glasses, glasses_anchors, place_glasses, procedural_glasses, FrameStyle,
@@ -37,84 +37,29 @@ fn v(x: f32, y: f32, z: f32) -> Vec3 {
     Vec3::new(x, y, z)
 }
 
-/// Hand-measured landmarks of three real heads (a detector is written elsewhere).
+/// Three real heads (two MakeHuman, one ICT), loaded as the assembler loads them: canonical
+/// frame, skin surface, detected landmarks.
 fn heads() -> Vec<Head> {
-    let specs = [
-        (
-            "mh_head_01_f_young_caucasian",
-            Landmarks {
-                eye_left: v(0.0288, 0.0284, 0.0747),
-                eye_right: v(-0.0288, 0.0284, 0.0747),
-                ear_left: v(0.0838, 0.0215, -0.0113),
-                ear_right: v(-0.0838, 0.0215, -0.0113),
-                nose_bridge: v(0.0, 0.0204, 0.1050),
-                crown: v(0.0, 0.1448, -0.0123),
-            },
-        ),
-        (
-            "mh_head_04_m_middleaged_caucasian",
-            Landmarks {
-                eye_left: v(0.0294, 0.0386, 0.0878),
-                eye_right: v(-0.0294, 0.0386, 0.0878),
-                ear_left: v(0.0864, 0.0308, -0.0089),
-                ear_right: v(-0.0864, 0.0308, -0.0089),
-                nose_bridge: v(0.0, 0.0442, 0.1111),
-                crown: v(0.0, 0.1588, 0.0104),
-            },
-        ),
-        (
-            "ict_head_seed7_1",
-            Landmarks {
-                eye_left: v(0.0303, 0.0340, 0.0788),
-                eye_right: v(-0.0307, 0.0340, 0.0795),
-                ear_left: v(0.0933, 0.0294, -0.0105),
-                ear_right: v(-0.0926, 0.0290, -0.0174),
-                nose_bridge: v(0.0002, 0.0257, 0.1224),
-                crown: v(0.0, 0.1497, -0.0067),
-            },
-        ),
-    ];
-    specs
-        .into_iter()
-        .map(|(name, lm)| {
-            let scene = Scene::load_gltf(&asset(&format!("heads/{name}.glb")))
-                .unwrap_or_else(|e| panic!("{name}: {e}"));
-            Head {
-                name,
-                lm,
-                skin: SkinGrid::new(skin_surface(&scene)),
-            }
-        })
-        .collect()
-}
-
-/// The skin of a head scene: triangles whose material name contains "skin".
-fn skin_surface(scene: &Scene) -> HeadSurface {
-    let mut s = HeadSurface::default();
-    for inst in &scene.instances {
-        let mesh = &scene.meshes[inst.mesh as usize];
-        let normal_matrix = Mat3::from_mat4(inst.transform).inverse().transpose();
-        let base = s.positions.len() as u32;
-        s.positions.extend(
-            mesh.positions
-                .iter()
-                .map(|p| inst.transform.transform_point3(Vec3::from(*p))),
-        );
-        s.normals.extend(
-            mesh.normals
-                .iter()
-                .map(|n| (normal_matrix * Vec3::from(*n)).normalize()),
-        );
-        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
-            let m = &scene.materials[mesh.triangle_materials[t] as usize];
-            if m.name.to_ascii_lowercase().contains("skin") {
-                s.triangles
-                    .push([tri[0] + base, tri[1] + base, tri[2] + base]);
-            }
+    let catalog = lightfarm_scene::Catalog::builtin().expect("catalog");
+    [
+        "mh01_f_young_caucasian",
+        "mh04_m_middleaged_caucasian",
+        "ict_seed7_1",
+    ]
+    .into_iter()
+    .map(|name| {
+        let a = catalog
+            .get(name)
+            .unwrap_or_else(|| panic!("{name} in the catalog"));
+        let head = lightfarm_subject::Head::load(a, &catalog.path_of(a), &BTreeMap::new())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        Head {
+            name,
+            lm: head.landmarks,
+            skin: SkinGrid::new(head.surface),
         }
-    }
-    assert!(!s.triangles.is_empty(), "head has no skin triangles");
-    s
+    })
+    .collect()
 }
 
 /// Skin triangles bucketed in a uniform grid for signed-distance queries.

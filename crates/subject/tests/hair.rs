@@ -4,7 +4,6 @@
 use std::sync::OnceLock;
 
 use glam::Vec3;
-use lightfarm_render::scene::Scene;
 use lightfarm_scene::expand::{HairSample, HAIR_RANGES};
 use lightfarm_subject::hair::{grow_eyebrows, grow_hair, hair_albedo, Strands, HAIR_STYLES};
 use lightfarm_subject::landmarks::closest_on_triangle;
@@ -26,82 +25,27 @@ struct Head {
     index: SkinIndex,
 }
 
-fn v(x: f32, y: f32, z: f32) -> Vec3 {
-    Vec3::new(x, y, z)
-}
-
-/// Landmarks measured on the assets (until the landmark detector lands).
-fn landmarks(id: HeadId) -> Landmarks {
+/// Catalog id of each test head.
+fn asset_id(id: HeadId) -> &'static str {
     match id {
-        HeadId::Mh01 => Landmarks {
-            eye_left: v(0.0288, 0.0284, 0.0747),
-            eye_right: v(-0.0288, 0.0284, 0.0747),
-            ear_left: v(0.0838, 0.0215, -0.0113),
-            ear_right: v(-0.0838, 0.0215, -0.0113),
-            nose_bridge: v(0.0, 0.0204, 0.1050),
-            crown: v(0.0, 0.1448, -0.0123),
-        },
-        HeadId::Mh04 => Landmarks {
-            eye_left: v(0.0294, 0.0386, 0.0878),
-            eye_right: v(-0.0294, 0.0386, 0.0878),
-            ear_left: v(0.0864, 0.0308, -0.0089),
-            ear_right: v(-0.0864, 0.0308, -0.0089),
-            nose_bridge: v(0.0, 0.0442, 0.1111),
-            crown: v(0.0, 0.1588, 0.0104),
-        },
-        HeadId::Ict7 => Landmarks {
-            eye_left: v(0.0303, 0.0340, 0.0788),
-            eye_right: v(-0.0307, 0.0340, 0.0795),
-            ear_left: v(0.0933, 0.0294, -0.0105),
-            ear_right: v(-0.0926, 0.0290, -0.0174),
-            nose_bridge: v(0.0002, 0.0257, 0.1224),
-            crown: v(0.0, 0.1497, -0.0067),
-        },
+        HeadId::Mh01 => "mh01_f_young_caucasian",
+        HeadId::Mh04 => "mh04_m_middleaged_caucasian",
+        HeadId::Ict7 => "ict_seed7_1",
     }
 }
 
-fn asset(id: HeadId) -> &'static str {
-    match id {
-        HeadId::Mh01 => "mh_head_01_f_young_caucasian.glb",
-        HeadId::Mh04 => "mh_head_04_m_middleaged_caucasian.glb",
-        HeadId::Ict7 => "ict_head_seed7_1.glb",
-    }
-}
-
-/// Skin triangles (material name containing "skin") of a head file, in the canonical frame.
-fn load_surface(id: HeadId) -> HeadSurface {
-    let path = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/heads"))
-        .join(asset(id));
-    let scene = Scene::load_gltf(&path).unwrap();
-    let mut s = HeadSurface::default();
-    for inst in &scene.instances {
-        assert_eq!(
-            inst.transform,
-            glam::Mat4::IDENTITY,
-            "{path:?} is not in the canonical frame"
-        );
-        let m = &scene.meshes[inst.mesh as usize];
-        let mut remap = vec![u32::MAX; m.positions.len()];
-        for (t, tri) in m.indices.chunks_exact(3).enumerate() {
-            let material = &scene.materials[m.triangle_materials[t] as usize];
-            if !material.name.to_lowercase().contains("skin") {
-                continue;
-            }
-            let mut out = [0u32; 3];
-            for (k, &i) in tri.iter().enumerate() {
-                let i = i as usize;
-                if remap[i] == u32::MAX {
-                    remap[i] = s.positions.len() as u32;
-                    s.positions.push(Vec3::from(m.positions[i]));
-                    s.normals.push(Vec3::from(m.normals[i]).normalize());
-                }
-                out[k] = remap[i];
-            }
-            s.triangles.push(out);
-        }
-    }
-    assert!(s.triangles.len() > 1000, "{path:?}: too little skin");
-    s
+/// The head as the assembler loads it: canonical frame, skin surface, detected landmarks.
+fn load_head(id: HeadId) -> lightfarm_subject::Head {
+    let catalog = lightfarm_scene::Catalog::builtin().expect("catalog");
+    let a = catalog.get(asset_id(id)).expect("head in the catalog");
+    let head = lightfarm_subject::Head::load(a, &catalog.path_of(a), &Default::default())
+        .unwrap_or_else(|e| panic!("{}: {e}", asset_id(id)));
+    assert!(
+        head.surface.triangles.len() > 1000,
+        "{}: too little skin",
+        asset_id(id)
+    );
+    head
 }
 
 fn head(id: HeadId) -> &'static Head {
@@ -112,12 +56,12 @@ fn head(id: HeadId) -> &'static Head {
         HeadId::Ict7 => 2,
     };
     HEADS[slot].get_or_init(|| {
-        let surface = load_surface(id);
-        let index = SkinIndex::new(&surface);
+        let loaded = load_head(id);
+        let index = SkinIndex::new(&loaded.surface);
         Head {
             id,
-            surface,
-            lm: landmarks(id),
+            surface: loaded.surface,
+            lm: loaded.landmarks,
             index,
         }
     })
