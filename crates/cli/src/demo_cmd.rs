@@ -206,32 +206,16 @@ async fn demo(a: DemoArgs) -> Result<()> {
         &job.id,
         &lightfarm_store::ExportFormat::Folder,
     )?;
-    let mut received: Vec<(pb::SampleInfo, Vec<u8>)> = Vec::new();
+    let mut assembler = lightfarm_coordinator::service::SampleAssembler::default();
+    let mut received = Vec::new();
     while let Some(chunk) = stream.message().await? {
-        match chunk.kind {
-            Some(pb::sample_chunk::Kind::Info(i)) => received.push((i, Vec::new())),
-            Some(pb::sample_chunk::Kind::Data(d)) => {
-                if let Some((_, buf)) = received.last_mut() {
-                    buf.extend_from_slice(&d);
-                }
-            }
-            None => {}
-        }
+        received.extend(assembler.push(chunk).map_err(anyhow::Error::msg)?);
     }
-    received.sort_by_key(|(i, _)| i.index);
+    received.extend(assembler.finish());
+    received.sort_by_key(|(r, _)| r.index);
     let mut sheet = Sheet::new(received.len() as u32, a.size, a.size);
     for (row, (info, bytes)) in received.iter().enumerate() {
-        let record = lightfarm_store::SampleRecord {
-            job_id: info.job_id.clone(),
-            index: info.index,
-            split: info.split.clone(),
-            blake3: info.blake3.clone(),
-            size: info.size,
-            metadata_json: info.metadata_json.clone(),
-            committed_unix: info.committed_unix,
-            sequence: info.sequence,
-        };
-        writer.add(&record, bytes)?;
+        writer.add(info, bytes)?;
         let meta: serde_json::Value = serde_json::from_str(&info.metadata_json).unwrap_or_default();
         let s = &meta["sample"];
         let caption = format!(

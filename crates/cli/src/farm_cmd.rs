@@ -7,8 +7,8 @@ use std::time::Duration;
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
+use lightfarm_coordinator::service::SampleAssembler;
 use lightfarm_proto::v1 as pb;
-use lightfarm_scene::Catalog;
 use lightfarm_worker::client::{channel, AuthedChannel};
 
 pub const DEFAULT_COORDINATOR: &str = "http://127.0.0.1:7070";
@@ -162,13 +162,6 @@ pub async fn shutdown_signal() {
     }
 }
 
-fn load_catalog(path: &Option<PathBuf>) -> Result<Catalog> {
-    Ok(match path {
-        Some(p) => Catalog::load(p)?,
-        None => Catalog::builtin()?,
-    })
-}
-
 pub fn serve(cmd: Serve) -> Result<()> {
     let rt = runtime()?;
     match cmd {
@@ -178,7 +171,7 @@ pub fn serve(cmd: Serve) -> Result<()> {
 }
 
 async fn serve_coordinator(a: CoordinatorArgs) -> Result<()> {
-    let catalog = load_catalog(&a.catalog)?;
+    let catalog = crate::spec_cmd::load_catalog(&a.catalog)?;
     let mut config =
         lightfarm_coordinator::CoordinatorConfig::new(a.data.clone(), a.token.clone(), catalog);
     config.lease_seconds = f64::from(a.lease_seconds.max(1));
@@ -481,22 +474,10 @@ pub fn export(a: ExportArgs) -> Result<()> {
         };
         let mut writer = lightfarm_store::ExportWriter::create(&a.out, &a.job, &format)?;
         let bar = ProgressBar::new_spinner();
-        let mut current: Option<(pb::SampleInfo, Vec<u8>)> = None;
-        let finish = |w: &mut lightfarm_store::ExportWriter,
-                      cur: Option<(pb::SampleInfo, Vec<u8>)>|
-         -> Result<()> {
-            if let Some((info, bytes)) = cur {
-                let record = lightfarm_store::SampleRecord {
-                    job_id: info.job_id,
-                    index: info.index,
-                    split: info.split,
-                    blake3: info.blake3,
-                    size: info.size,
-                    metadata_json: info.metadata_json,
-                    committed_unix: info.committed_unix,
-                    sequence: info.sequence,
-                };
-                w.add(&record, &bytes)?;
+        let mut samples = SampleAssembler::default();
+        let mut add = |sample: Option<(lightfarm_store::SampleRecord, Vec<u8>)>| -> Result<()> {
+            if let Some((record, bytes)) = sample {
+                writer.add(&record, &bytes)?;
                 bar.inc(1);
             }
             Ok(())
@@ -506,20 +487,9 @@ pub fn export(a: ExportArgs) -> Result<()> {
             .await
             .map_err(|s| status_err(&a.connect, s))?
         {
-            match chunk.kind {
-                Some(pb::sample_chunk::Kind::Info(info)) => {
-                    finish(&mut writer, current.take())?;
-                    current = Some((info, Vec::new()));
-                }
-                Some(pb::sample_chunk::Kind::Data(d)) => {
-                    if let Some((_, buf)) = current.as_mut() {
-                        buf.extend_from_slice(&d);
-                    }
-                }
-                None => {}
-            }
+            add(samples.push(chunk).map_err(anyhow::Error::msg)?)?;
         }
-        finish(&mut writer, current.take())?;
+        add(samples.finish())?;
         let report = writer.finish()?;
         bar.finish_and_clear();
         eprintln!(

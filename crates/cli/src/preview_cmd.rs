@@ -10,7 +10,6 @@ use lightfarm_render::vulkan::DeviceRequest;
 use lightfarm_render::Renderer;
 use lightfarm_scene::expand::{expand, SampleSpec};
 use lightfarm_scene::spec::DatasetSpec;
-use lightfarm_scene::Catalog;
 use lightfarm_subject::render::render_sample;
 
 use crate::sheet::{tiles, Sheet};
@@ -70,19 +69,8 @@ pub fn run(args: PreviewArgs) -> Result<()> {
     if args.spp == 0 || args.spp > 65536 {
         bail!("--spp {} must be in 1..=65536", args.spp);
     }
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        if !dir.is_dir() {
-            bail!(
-                "--out {}: the directory {} does not exist",
-                args.out.display(),
-                dir.display()
-            );
-        }
-    }
-    let catalog = match &args.catalog {
-        Some(p) => Catalog::load(p)?,
-        None => Catalog::builtin()?,
-    };
+    crate::render_cmd::ensure_parent(&args.out, "--out")?;
+    let catalog = crate::spec_cmd::load_catalog(&args.catalog)?;
     let spec = DatasetSpec::load(&args.spec)?.validate(&catalog)?;
     let end = args
         .start

@@ -107,7 +107,8 @@ fn choose_camera(args: &RenderArgs, scene: &Scene, aspect: f32) -> Result<Camera
     Ok(Camera::frame_bounds(min, max, aspect))
 }
 
-fn ensure_parent(path: &Path, flag: &str) -> Result<()> {
+/// Refuses an output path whose directory does not exist, naming the flag.
+pub(crate) fn ensure_parent(path: &Path, flag: &str) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         if !dir.is_dir() {
             bail!(

@@ -50,7 +50,8 @@ pub enum AssetsCommand {
     },
 }
 
-fn load_catalog(path: &Option<PathBuf>) -> Result<Catalog> {
+/// The catalog at `--catalog`, else the built-in one (or `$LIGHTFARM_ASSETS`).
+pub(crate) fn load_catalog(path: &Option<PathBuf>) -> Result<Catalog> {
     Ok(match path {
         Some(p) => Catalog::load(p)?,
         None => Catalog::builtin()?,

@@ -95,6 +95,55 @@ fn record_to_pb(r: &SampleRecord) -> pb::SampleInfo {
     }
 }
 
+/// The reverse of [`record_to_pb`], for clients rebuilding index records from a stream.
+pub fn record_from_pb(i: pb::SampleInfo) -> SampleRecord {
+    SampleRecord {
+        job_id: i.job_id,
+        index: i.index,
+        split: i.split,
+        blake3: i.blake3,
+        size: i.size,
+        metadata_json: i.metadata_json,
+        committed_unix: i.committed_unix,
+        sequence: i.sequence,
+    }
+}
+
+/// Reassembles a `GetSample` / `StreamSamples` stream (per sample: its info, then its data
+/// chunks) into whole samples.
+#[derive(Default)]
+pub struct SampleAssembler {
+    current: Option<(SampleRecord, Vec<u8>)>,
+}
+
+impl SampleAssembler {
+    /// Feeds one chunk; returns the previous sample when this chunk starts the next one. A data
+    /// chunk before any info breaks the protocol and is an error.
+    pub fn push(
+        &mut self,
+        chunk: pb::SampleChunk,
+    ) -> Result<Option<(SampleRecord, Vec<u8>)>, String> {
+        match chunk.kind {
+            Some(pb::sample_chunk::Kind::Info(info)) => {
+                Ok(self.current.replace((record_from_pb(info), Vec::new())))
+            }
+            Some(pb::sample_chunk::Kind::Data(d)) => match self.current.as_mut() {
+                Some((_, buf)) => {
+                    buf.extend_from_slice(&d);
+                    Ok(None)
+                }
+                None => Err("the coordinator sent sample data before the sample's info".into()),
+            },
+            None => Ok(None),
+        }
+    }
+
+    /// The last sample, once the stream has ended.
+    pub fn finish(self) -> Option<(SampleRecord, Vec<u8>)> {
+        self.current
+    }
+}
+
 /// Store errors as gRPC statuses (through the coordinator's one mapping).
 fn store(e: lightfarm_store::StoreError) -> Status {
     CoordError::from(e).into()

@@ -25,20 +25,23 @@ glasses_probability = 0.5
 
 struct Running {
     addr: String,
+    port: u16,
     metrics_addr: std::net::SocketAddr,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     handle: tokio::task::JoinHandle<()>,
     dir: tempfile::TempDir,
 }
 
-async fn start(max_upload: u64) -> Running {
+/// A coordinator on an ephemeral port (and /metrics on another), with its data in a temp dir;
+/// `configure` adjusts the config and may write files into that dir first.
+async fn start(configure: impl FnOnce(&std::path::Path, &mut CoordinatorConfig)) -> Running {
     let dir = tempfile::tempdir().expect("tmp");
     let mut config = CoordinatorConfig::new(
         dir.path().join("data"),
         TOKEN.into(),
         Catalog::builtin().expect("catalog"),
     );
-    config.max_upload_bytes = max_upload;
+    configure(dir.path(), &mut config);
     let coordinator = tokio::task::spawn_blocking(move || Coordinator::open(config))
         .await
         .expect("join")
@@ -46,7 +49,8 @@ async fn start(max_upload: u64) -> Running {
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
         .await
         .expect("bind");
-    let addr = format!("http://{}", listener.local_addr().expect("addr"));
+    let port = listener.local_addr().expect("addr").port();
+    let addr = format!("http://127.0.0.1:{port}");
     let metrics_listener = tokio::net::TcpListener::bind("127.0.0.1:0")
         .await
         .expect("bind");
@@ -68,6 +72,7 @@ async fn start(max_upload: u64) -> Running {
     });
     Running {
         addr,
+        port,
         metrics_addr,
         stop: Some(tx),
         handle,
@@ -106,7 +111,7 @@ async fn submit(jobs: &mut pb::jobs_client::JobsClient<Authed>, spec: &str) -> p
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn a_dataset_renders_commits_once_and_exports() {
-    let mut c = start(256 << 20).await;
+    let mut c = start(|_, config| config.max_upload_bytes = 256 << 20).await;
     let (mut jobs, _, mut samples) = clients(&c.addr, TOKEN);
     let job = submit(&mut jobs, SPEC).await;
     assert_eq!(job.count, 6);
@@ -191,37 +196,14 @@ async fn a_dataset_renders_commits_once_and_exports() {
         },
     )
     .expect("writer");
-    let mut current: Option<(pb::SampleInfo, Vec<u8>)> = None;
-    let add = |w: &mut lightfarm_store::ExportWriter, cur: Option<(pb::SampleInfo, Vec<u8>)>| {
-        if let Some((i, bytes)) = cur {
-            let r = lightfarm_store::SampleRecord {
-                job_id: i.job_id,
-                index: i.index,
-                split: i.split,
-                blake3: i.blake3,
-                size: i.size,
-                metadata_json: i.metadata_json,
-                committed_unix: i.committed_unix,
-                sequence: i.sequence,
-            };
-            w.add(&r, &bytes).expect("add");
-        }
-    };
+    let mut samples = lightfarm_coordinator::service::SampleAssembler::default();
     while let Some(chunk) = stream.message().await.expect("chunk") {
-        match chunk.kind {
-            Some(pb::sample_chunk::Kind::Info(i)) => {
-                add(&mut writer, current.take());
-                current = Some((i, Vec::new()));
-            }
-            Some(pb::sample_chunk::Kind::Data(d)) => current
-                .as_mut()
-                .expect("info first")
-                .1
-                .extend_from_slice(&d),
-            None => {}
+        if let Some((record, bytes)) = samples.push(chunk).expect("info before data") {
+            writer.add(&record, &bytes).expect("add");
         }
     }
-    add(&mut writer, current.take());
+    let (record, bytes) = samples.finish().expect("at least one sample");
+    writer.add(&record, &bytes).expect("add");
     let report = writer.finish().expect("finish");
     assert_eq!(report.samples, 6);
     let back = lightfarm_store::read_export(&out).expect("read export");
@@ -291,7 +273,7 @@ async fn http_get(addr: std::net::SocketAddr, path: &str) -> String {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_input_gets_clear_codes_and_stores_nothing() {
-    let mut c = start(1 << 20).await;
+    let mut c = start(|_, config| config.max_upload_bytes = 1 << 20).await;
     // Authentication.
     for token in ["", "wrong"] {
         let (mut jobs, ..) = clients(&c.addr, token);
@@ -470,35 +452,16 @@ async fn bad_input_gets_clear_codes_and_stores_nothing() {
 /// certificate works, a plain-text client does not.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn tls_serves_clients_that_trust_the_certificate() {
-    let dir = tempfile::tempdir().expect("tmp");
-    let cert = rcgen::generate_simple_self_signed(vec!["localhost".to_string()])
-        .expect("self-signed certificate");
-    let (cert_path, key_path) = (dir.path().join("cert.pem"), dir.path().join("key.pem"));
-    std::fs::write(&cert_path, cert.cert.pem()).expect("write cert");
-    std::fs::write(&key_path, cert.key_pair.serialize_pem()).expect("write key");
-    let mut config = CoordinatorConfig::new(
-        dir.path().join("data"),
-        TOKEN.into(),
-        Catalog::builtin().expect("catalog"),
-    );
-    config.tls = Some((cert_path.clone(), key_path));
-    let coordinator = tokio::task::spawn_blocking(move || Coordinator::open(config))
-        .await
-        .expect("join")
-        .expect("open");
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
-        .await
-        .expect("bind");
-    let port = listener.local_addr().expect("addr").port();
-    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
-    let handle = tokio::spawn(async move {
-        coordinator
-            .serve(listener, async {
-                let _ = rx.await;
-            })
-            .await
-            .expect("serve");
-    });
+    let mut c = start(|dir, config| {
+        let cert = rcgen::generate_simple_self_signed(vec!["localhost".to_string()])
+            .expect("self-signed certificate");
+        let (cert_path, key_path) = (dir.join("cert.pem"), dir.join("key.pem"));
+        std::fs::write(&cert_path, cert.cert.pem()).expect("write cert");
+        std::fs::write(&key_path, cert.key_pair.serialize_pem()).expect("write key");
+        config.tls = Some((cert_path, key_path));
+    })
+    .await;
+    let (port, cert_path) = (c.port, c.dir.path().join("cert.pem"));
 
     let (ch, auth) = lightfarm_worker::client::channel(
         &format!("https://localhost:{port}"),
@@ -522,6 +485,6 @@ async fn tls_serves_clients_that_trust_the_certificate() {
         "plain text is refused"
     );
 
-    let _ = tx.send(());
-    handle.await.expect("server");
+    let _ = c.stop.take().map(|s| s.send(()));
+    c.handle.await.expect("server");
 }
