@@ -1,6 +1,7 @@
 //! `lightfarm demo`: the one-machine case. A coordinator and a render worker run in this
 //! process; a small light-stage dataset is rendered from the built-in assets, exported as a
-//! folder of EXR + JSON, and shown as a contact sheet.
+//! folder of EXR + JSON, and shown as a contact sheet; then the relighting network trains on it
+//! briefly, relights a held-out sample and is scored on the test split.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -29,6 +30,12 @@ pub struct DemoArgs {
     spp: u32,
     #[arg(long, env = "LIGHTFARM_DEVICE", default_value = "auto")]
     device: String,
+    /// Training steps after rendering (0 skips training and relighting).
+    #[arg(long, default_value_t = 300)]
+    train_steps: u64,
+    /// Where the networks train: auto, cpu or gpu.
+    #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE", default_value = "auto")]
+    train_device: String,
 }
 
 fn spec(a: &DemoArgs) -> String {
@@ -99,10 +106,14 @@ pub fn run(a: DemoArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("--out {}", a.out.display()))?;
     let rt = crate::farm_cmd::runtime()?;
-    rt.block_on(demo(a))
+    rt.block_on(demo(&a))?;
+    if a.train_steps > 0 {
+        train_and_relight(&a)?;
+    }
+    Ok(())
 }
 
-async fn demo(a: DemoArgs) -> Result<()> {
+async fn demo(a: &DemoArgs) -> Result<()> {
     let data = a.out.join("farm");
     // A fresh farm each run: the demo's job ids and samples start from zero.
     if data.exists() {
@@ -129,7 +140,7 @@ async fn demo(a: DemoArgs) -> Result<()> {
     let mut jobs = pb::jobs_client::JobsClient::with_interceptor(ch.clone(), auth.clone());
     let job = jobs
         .submit_dataset(pb::SubmitDatasetRequest {
-            spec: Some(pb::submit_dataset_request::Spec::Toml(spec(&a))),
+            spec: Some(pb::submit_dataset_request::Spec::Toml(spec(a))),
             priority: 0,
         })
         .await?
@@ -249,6 +260,107 @@ async fn demo(a: DemoArgs) -> Result<()> {
         report.bytes as f64 / 1e6,
         sheet_path.display()
     );
-    eprintln!("demo: training and relighting are not implemented yet; the exported dataset is what the trainer will read");
     Ok(())
+}
+
+/// Trains the tiny network on the exported dataset, relights a held-out sample under another
+/// HDRI and scores the test split: the whole pipeline in a couple of minutes on a CPU.
+fn train_and_relight(a: &DemoArgs) -> Result<()> {
+    use lightfarm_trainer::config::{NetConfig, TrainConfig};
+    let dataset = a.out.join("dataset");
+    let run = a.out.join("train");
+    if run.exists() {
+        std::fs::remove_dir_all(&run).with_context(|| format!("clearing {}", run.display()))?;
+    }
+    let crop = (a.size as usize).min(64) / 4 * 4;
+    let entries = lightfarm_store::list_export_folder(&dataset)?;
+    let has = |split: &str| entries.iter().any(|e| e.split == split);
+    // A very small demo may draw no held-out identity, or nothing else; use what there is.
+    let train_split = if has("train") { "train" } else { "all" };
+    let eval_split = if has("test") { "test" } else { "all" };
+    let mut cfg: TrainConfig = toml::from_str(&format!(
+        "dataset = {:?}\nout = {:?}\nsplit = {train_split:?}\nsteps = {}\nbatch = 4\ncrop = {crop}\nlr = 2e-3\ncheckpoint_every = 50\ndevice = {:?}\n",
+        dataset, run, a.train_steps, a.train_device
+    ))?;
+    cfg.net = NetConfig {
+        widths: vec![8, 16, 32],
+        critic_width: 8,
+        ..NetConfig::default()
+    };
+    cfg.validate().map_err(anyhow::Error::msg)?;
+    eprintln!("demo: training the relighting network ({} steps, widths {:?}, {crop}² crops) on the train split", cfg.steps, cfg.net.widths);
+    let bar = ProgressBar::new(cfg.steps).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} steps  {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    struct Obs(ProgressBar);
+    impl lightfarm_trainer::Observer for Obs {
+        fn on_step(&mut self, l: &lightfarm_trainer::StepLog) {
+            self.0.set_position(l.step);
+            self.0.set_message(format!("loss {:.4}", l.total));
+        }
+    }
+    let stop = std::sync::atomic::AtomicBool::new(false);
+    let summary =
+        lightfarm_trainer::train(&cfg, Catalog::builtin()?, &mut Obs(bar.clone()), &stop)?;
+    bar.finish_and_clear();
+    let losses = lightfarm_trainer::train::read_losses(&run)?;
+    if let (Some(first), Some(last)) = (losses.first(), losses.last()) {
+        eprintln!(
+            "demo: loss {:.4} → {:.4}; checkpoint {}",
+            first.total,
+            last.total,
+            summary.checkpoint.display()
+        );
+    }
+
+    // Relight a held-out (test split) sample under an HDRI it was not rendered with.
+    let entry = entries
+        .iter()
+        .find(|e| e.split == "test")
+        .or(entries.first())
+        .context("the demo dataset is empty")?;
+    let bytes = std::fs::read(&entry.exr).with_context(|| entry.exr.display().to_string())?;
+    let sample =
+        lightfarm_trainer::sample::decode_sample(&bytes, &entry.exr.display().to_string())?;
+    let used: Vec<&str> = sample
+        .spec
+        .lighting
+        .iter()
+        .map(|l| l.hdri.as_str())
+        .collect();
+    let catalog = Catalog::builtin()?;
+    let hdri = catalog
+        .of_kind(lightfarm_scene::AssetKind::Hdri)
+        .into_iter()
+        .find(|h| !used.contains(&h.id.as_str()))
+        .context("the catalog needs a third HDRI")?
+        .id
+        .clone();
+    let relit = a.out.join("relit.png");
+    crate::train_cmd::relight(crate::train_cmd::RelightArgs {
+        model: run.clone(),
+        image: entry.exr.clone(),
+        mask: None,
+        hdri: hdri.clone(),
+        rotation: 0.0,
+        flip: false,
+        out: relit.clone(),
+        device: a.train_device.clone(),
+        assets: None,
+    })?;
+    eprintln!(
+        "demo: relit sample {} ({}) under {hdri}: {}",
+        entry.index,
+        entry.split,
+        relit.display()
+    );
+    crate::train_cmd::eval(crate::train_cmd::EvalArgs {
+        model: vec![run],
+        dataset: Some(dataset),
+        split: eval_split.into(),
+        json: Some(a.out.join("eval.json")),
+        device: a.train_device.clone(),
+        assets: None,
+    })
 }

@@ -6,6 +6,7 @@ mod preview_cmd;
 mod render_cmd;
 mod sheet;
 mod spec_cmd;
+mod train_cmd;
 
 use clap::{Parser, Subcommand};
 use tracing_subscriber::EnvFilter;
@@ -58,6 +59,13 @@ enum Command {
     Samples(farm_cmd::SamplesArgs),
     /// Export a job's committed samples as WebDataset tar shards or a folder of EXR + JSON.
     Export(farm_cmd::ExportArgs),
+    /// Train the relighting network on a folder export (resumes from the run's newest
+    /// checkpoint; Ctrl-C stops after a checkpoint).
+    Train(train_cmd::TrainArgs),
+    /// Relight a portrait with a trained model under an HDRI.
+    Relight(Box<train_cmd::RelightArgs>),
+    /// Score models on a split (MAE, MSE, SSIM, SH lighting recovery), one row each.
+    Eval(train_cmd::EvalArgs),
 }
 
 fn main() {
@@ -86,6 +94,9 @@ fn main() {
         Command::Resume(a) => farm_cmd::job_action(a, "resume"),
         Command::Samples(a) => farm_cmd::samples(a),
         Command::Export(a) => farm_cmd::export(a),
+        Command::Train(a) => train_cmd::train(a),
+        Command::Relight(a) => train_cmd::relight(*a),
+        Command::Eval(a) => train_cmd::eval(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -96,7 +96,17 @@ fn demo_renders_exports_and_draws_a_sheet() {
     let dir = tempfile::tempdir().expect("tmp");
     let r = run(
         &[
-            "demo", "--out", "demo", "--count", "3", "--size", "16", "--spp", "1",
+            "demo",
+            "--out",
+            "demo",
+            "--count",
+            "3",
+            "--size",
+            "16",
+            "--spp",
+            "1",
+            "--train-steps",
+            "3",
         ],
         dir.path(),
     );
@@ -108,4 +118,12 @@ fn demo_renders_exports_and_draws_a_sheet() {
         .iter()
         .all(|s| !s.exr.is_empty() && s.json["sample"]["index"] == s.index));
     assert!(dir.path().join("demo/sheet.png").is_file());
+    // Then it trained, relit a sample and scored the model.
+    assert!(dir.path().join("demo/train/checkpoints/latest").is_file());
+    assert!(dir.path().join("demo/relit.png").is_file());
+    let eval: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(dir.path().join("demo/eval.json")).expect("eval.json"),
+    )
+    .expect("eval json");
+    assert_eq!(eval.as_array().map(Vec::len), Some(2), "{eval}");
 }

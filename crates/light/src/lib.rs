@@ -7,12 +7,17 @@
 
 mod distribution;
 mod hdri;
+mod lightmaps;
 mod load;
 mod mapping;
 mod sampler;
 
 pub use distribution::{Distribution1D, Distribution2D};
 pub use hdri::Hdri;
+pub use lightmaps::{
+    default_resolution, downsample, prefilter_phong, sh9_basis, PrefilteredEnv, PrefilteredMap,
+    ShRadiance, PHONG_EXPONENTS,
+};
 pub use load::LightError;
 pub use mapping::{dir_to_uv, uv_to_dir, EnvTransform};
 pub use sampler::EnvSampler;

@@ -300,6 +300,22 @@ pub struct CameraSample {
     pub subject_offset_m: [f64; 3],
 }
 
+impl CameraSample {
+    /// Camera → world rotation, row-major, columns = the camera's right, up and back (+Z toward
+    /// the viewer) axes: R_y(yaw)·R_x(−pitch), the rotation that puts the camera on its sphere
+    /// (`subject::assemble::sample_camera`, which a test there checks this against).
+    pub fn camera_to_world(&self) -> [[f64; 3]; 3] {
+        let (sy, cy) = self.yaw_deg.to_radians().sin_cos();
+        let (sp, cp) = (-self.pitch_deg).to_radians().sin_cos();
+        // R_y(a) = [[c,0,s],[0,1,0],[-s,0,c]], R_x(b) = [[1,0,0],[0,c,-s],[0,s,c]].
+        [
+            [cy, sy * sp, sy * cp],
+            [0.0, cp, -sp],
+            [-sy, cy * sp, cy * cp],
+        ]
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LightingSample {

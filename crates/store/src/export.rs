@@ -554,6 +554,71 @@ pub fn read_export(path: &Path) -> Result<Vec<ExportedSample>, StoreError> {
     Ok(out)
 }
 
+/// One sample of a folder export, read on demand: training sets are far larger than memory.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ExportEntry {
+    pub index: u64,
+    pub split: String,
+    pub exr: PathBuf,
+    pub json: PathBuf,
+}
+
+impl ExportEntry {
+    /// Reads this sample, checking its EXR against the `blake3` in its JSON.
+    pub fn read(&self) -> Result<ExportedSample, StoreError> {
+        let exr = fs::read(&self.exr).map_err(|e| StoreError::io(&self.exr, e))?;
+        let json = fs::read(&self.json).map_err(|e| StoreError::io(&self.json, e))?;
+        checked_sample(self.index, &self.json, &json, exr)
+    }
+}
+
+/// Lists a folder export through its manifest without reading any sample. WebDataset shards
+/// are sequential by design and are refused with the command that makes a folder export.
+pub fn list_export_folder(path: &Path) -> Result<Vec<ExportEntry>, StoreError> {
+    let manifest_path = path.join(MANIFEST);
+    if !manifest_path.is_file() {
+        return Err(export_err(format!(
+            "{} has no {MANIFEST}: not a finished lightfarm export — run `lightfarm export JOB \
+             --format folder --out {}`",
+            path.display(),
+            path.display()
+        )));
+    }
+    let mut out = Vec::new();
+    for line in read_manifest(&manifest_path)? {
+        if line.files.iter().any(|f| f.ends_with(".tar")) {
+            return Err(export_err(format!(
+                "{} is a WebDataset export; training reads samples in random order and needs \
+                 a folder export: `lightfarm export {} --format folder --out DIR`",
+                path.display(),
+                line.job_id
+            )));
+        }
+        let find = |ext: &str| -> Result<PathBuf, StoreError> {
+            let name = line
+                .files
+                .iter()
+                .find(|f| f.ends_with(ext))
+                .ok_or_else(|| {
+                    export_err(format!(
+                        "{}: sample {} lists no {ext} file",
+                        manifest_path.display(),
+                        line.index
+                    ))
+                })?;
+            check_manifest_name(path, name)?;
+            Ok(path.join(name))
+        };
+        out.push(ExportEntry {
+            index: line.index,
+            split: line.split.clone(),
+            exr: find(".exr")?,
+            json: find(".json")?,
+        });
+    }
+    Ok(out)
+}
+
 fn check_manifest_name(dir: &Path, name: &str) -> Result<(), StoreError> {
     if is_plain_name(name) {
         Ok(())

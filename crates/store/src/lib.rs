@@ -13,7 +13,10 @@ mod tiered;
 pub use blob::{hash_hex, is_hash, BlobStore, BlobWriter, Hash};
 pub use disk::DiskBlobStore;
 pub use error::StoreError;
-pub use export::{export, read_export, ExportFormat, ExportReport, ExportWriter, ExportedSample};
+pub use export::{
+    export, list_export_folder, read_export, ExportEntry, ExportFormat, ExportReport, ExportWriter,
+    ExportedSample,
+};
 pub use index::{CommitOutcome, SampleIndex, SampleRecord};
 pub use memory::MemoryBlobStore;
 pub use tiered::{TieredBlobStore, DEFAULT_INLINE_MAX};

@@ -208,3 +208,28 @@ fn rendered_samples_look_like_portraits() {
         }
     }
 }
+
+/// The trainer orients light maps with `CameraSample::camera_to_world`; it must be the basis of
+/// the camera the renderer actually used (right, up, and back = −forward).
+#[test]
+fn camera_to_world_is_the_rendered_cameras_basis() {
+    let catalog = catalog();
+    let spec = spec(&catalog, "");
+    for index in 0..20 {
+        let sample = expand(&spec, index).unwrap();
+        let camera = lightfarm_subject::assemble::sample_camera(&sample).unwrap();
+        let m = sample.camera.camera_to_world();
+        let col = |j: usize| Vec3::new(m[0][j] as f32, m[1][j] as f32, m[2][j] as f32);
+        let right = camera.forward.cross(camera.up).normalize();
+        for (got, want) in [
+            (col(0), right),
+            (col(1), camera.up),
+            (col(2), -camera.forward),
+        ] {
+            assert!(
+                (got - want).length() < 1e-5,
+                "sample {index}: {got} vs {want}"
+            );
+        }
+    }
+}

@@ -1,0 +1,257 @@
+//! `lightfarm train`, `relight` and `eval`: the trainer crate behind a progress bar.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use lightfarm_trainer::config::TrainConfig;
+use lightfarm_trainer::eval::{evaluate, table};
+use lightfarm_trainer::image_io::{load_portrait, write_png};
+use lightfarm_trainer::infer::{light_balls, load_model, resolve_model_dir};
+use lightfarm_trainer::lights::{camera_to_env, identity_camera, Lighting};
+use lightfarm_trainer::train::RUN_FILE;
+use lightfarm_trainer::{Observer, StepLog};
+
+use crate::spec_cmd::load_catalog;
+
+#[derive(Args, Debug)]
+pub struct TrainArgs {
+    /// Training config (TOML): dataset, out, steps, batch, crop, lr, net, loss.
+    pub config: PathBuf,
+    /// Override `steps` (resuming a finished run to a larger count continues it).
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Override `device`: auto, cpu or gpu.
+    #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE")]
+    pub device: Option<String>,
+}
+
+struct Bar(ProgressBar);
+
+impl Observer for Bar {
+    fn on_start(&mut self, start: u64, end: u64) {
+        self.0.set_length(end);
+        self.0.set_position(start);
+        self.0.reset_eta();
+    }
+
+    fn on_step(&mut self, l: &StepLog) {
+        self.0.set_position(l.step);
+        self.0.set_message(format!(
+            "loss {:.4} (relit {:.4}, normal {:.4}, albedo {:.4}) {:.1} samples/s",
+            l.total, l.relit, l.normal, l.albedo, l.samples_per_second
+        ));
+    }
+}
+
+/// Sets the returned flag on Ctrl-C or SIGTERM, so training stops after a checkpoint.
+fn cancel_on_signal() -> Result<Arc<AtomicBool>> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let rt = crate::farm_cmd::runtime()?;
+    let f = flag.clone();
+    std::thread::Builder::new()
+        .name("signals".into())
+        .spawn(move || {
+            rt.block_on(crate::farm_cmd::shutdown_signal());
+            eprintln!("stopping after the current step (checkpointing)…");
+            f.store(true, Ordering::Relaxed);
+        })
+        .context("starting the signal thread")?;
+    Ok(flag)
+}
+
+pub fn train(a: TrainArgs) -> Result<()> {
+    let mut cfg = TrainConfig::load(&a.config)?;
+    if let Some(s) = a.steps {
+        cfg.steps = s;
+    }
+    if let Some(d) = a.device {
+        cfg.device = d;
+    }
+    cfg.validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", a.config.display()))?;
+    let catalog = load_catalog(&cfg.assets)?;
+    let cancel = cancel_on_signal()?;
+    let bar = ProgressBar::new(cfg.steps).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} steps  eta {eta}  {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut observer = Bar(bar.clone());
+    let summary = lightfarm_trainer::train(&cfg, catalog, &mut observer, &cancel)?;
+    bar.finish();
+    println!(
+        "{} steps {}..{}; checkpoint {}; loss curve {}",
+        if summary.cancelled {
+            "stopped at"
+        } else {
+            "trained"
+        },
+        summary.start_step,
+        summary.end_step,
+        summary.checkpoint.display(),
+        cfg.out.join(lightfarm_trainer::train::LOSS_FILE).display()
+    );
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct RelightArgs {
+    /// A run directory (newest checkpoint), a checkpoint directory or its model.safetensors.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Portrait: PNG/JPEG (sRGB; alpha = mask), an RGB(A) EXR, or a lightfarm sample EXR.
+    #[arg(long)]
+    pub image: PathBuf,
+    /// Foreground mask (white = subject); default: the image's alpha, or all of it.
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
+    /// Target lighting: an .hdr/.exr file or an HDRI id of the asset catalog.
+    #[arg(long)]
+    pub hdri: String,
+    /// Rotation of the HDRI about +Y, degrees.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub rotation: f32,
+    #[arg(long)]
+    pub flip: bool,
+    /// Relit image (PNG) with the diffuse and mirror balls inset; the network's normal,
+    /// albedo and light maps go next to it as OUT_normal.png etc.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE", default_value = "auto")]
+    pub device: String,
+    /// Asset catalog for HDRI ids (default: the built-in pack).
+    #[arg(long)]
+    pub assets: Option<PathBuf>,
+}
+
+fn load_lighting(hdri: &str, assets: &Option<PathBuf>) -> Result<Lighting> {
+    let path = Path::new(hdri);
+    if path.exists() {
+        return Ok(Lighting::load(path)?);
+    }
+    let catalog = load_catalog(assets)?;
+    match catalog.get(hdri) {
+        Some(a) if a.kind == lightfarm_scene::AssetKind::Hdri => Ok(Lighting::load(&catalog.path_of(a))?),
+        _ => bail!("--hdri {hdri}: neither a file nor an HDRI id of the catalog (`lightfarm assets list` shows them)"),
+    }
+}
+
+pub fn relight(a: RelightArgs) -> Result<()> {
+    crate::render_cmd::ensure_parent(&a.out, "--out")?;
+    let model = load_model(&a.model, &a.device)?;
+    let portrait = load_portrait(&a.image, a.mask.as_deref())?;
+    let lighting = load_lighting(&a.hdri, &a.assets)?;
+    let lighting_sample = lightfarm_scene::expand::LightingSample {
+        hdri: a.hdri.clone(),
+        blake3: String::new(),
+        rotation_deg: f64::from(a.rotation),
+        flip: a.flip,
+    };
+    // A rendered sample knows its camera; a photograph is taken from the HDRI's front (−Z).
+    let rot = match &portrait.sample {
+        Some(s) => camera_to_env(s.spec.camera.camera_to_world(), &lighting_sample, false),
+        None => identity_camera(a.rotation, a.flip),
+    };
+    let (w, h) = (portrait.width, portrait.height);
+    let r = model.relight(&portrait.rgb, &portrait.mask, w, h, &lighting, rot)?;
+
+    let mut composed = r.relit.clone();
+    let ball = (h.min(w) / 5).max(8);
+    if 2 * ball <= w && ball <= h {
+        let balls = light_balls(&lighting, rot, ball);
+        for y in 0..ball {
+            for x in 0..2 * ball {
+                composed[(h - ball + y) * w + (w - 2 * ball + x)] = balls[y * 2 * ball + x];
+            }
+        }
+    }
+    write_png(&a.out, w, h, &composed)?;
+    let stem = a.out.with_extension("");
+    let side = |name: &str| PathBuf::from(format!("{}_{name}.png", stem.display()));
+    let vis = |n: &[[f32; 3]]| -> Vec<[f32; 3]> {
+        n.iter()
+            .map(|v| v.map(|c| srgb_linear(c * 0.5 + 0.5)))
+            .collect()
+    };
+    write_png(&side("normal"), w, h, &vis(&r.normal))?;
+    write_png(&side("normal_lens"), w, h, &vis(&r.normal_lens))?;
+    write_png(&side("albedo"), w, h, &r.albedo)?;
+    write_png(&side("diffuse"), w, h, &r.diffuse)?;
+    write_png(&side("specular"), w, h, &r.specular)?;
+    println!(
+        "wrote {} (+ _normal, _normal_lens, _albedo, _diffuse, _specular) with model {}",
+        a.out.display(),
+        model.dir.display()
+    );
+    Ok(())
+}
+
+/// Inverse sRGB, so a [0,1] visualisation (normals) lands in the PNG unchanged.
+fn srgb_linear(v: f32) -> f32 {
+    let v = v.clamp(0.0, 1.0);
+    if v <= 0.040_45 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// Models to compare (run or checkpoint directories); one row each.
+    #[arg(long, required = true)]
+    pub model: Vec<PathBuf>,
+    /// Folder export to evaluate on (default: the first model's training dataset).
+    #[arg(long)]
+    pub dataset: Option<PathBuf>,
+    /// Held-out identities are the "test" split.
+    #[arg(long, default_value = "test")]
+    pub split: String,
+    /// Also write the rows as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE", default_value = "auto")]
+    pub device: String,
+    #[arg(long)]
+    pub assets: Option<PathBuf>,
+}
+
+/// The run a model came from (run.json two levels above its checkpoint), for its dataset.
+fn run_config_of(model: &Path) -> Option<TrainConfig> {
+    let dir = resolve_model_dir(model).ok()?;
+    let run = dir.parent()?.parent()?.join(RUN_FILE);
+    serde_json::from_str(&std::fs::read_to_string(run).ok()?).ok()
+}
+
+pub fn eval(a: EvalArgs) -> Result<()> {
+    let run = run_config_of(&a.model[0]);
+    let dataset = match (&a.dataset, &run) {
+        (Some(d), _) => d.clone(),
+        (None, Some(r)) => r.dataset.clone(),
+        (None, None) => bail!(
+            "--dataset is needed: {} has no run.json naming its dataset",
+            a.model[0].display()
+        ),
+    };
+    let assets = a.assets.clone().or_else(|| run.and_then(|r| r.assets));
+    let catalog = load_catalog(&assets)?;
+    let bar = ProgressBar::new(0).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} samples  eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let rows = evaluate(&a.model, &dataset, &a.split, catalog, &a.device, |i, n| {
+        bar.set_length(n as u64);
+        bar.set_position(i as u64);
+    })?;
+    bar.finish_and_clear();
+    print!("{}", table(&rows));
+    if let Some(path) = &a.json {
+        crate::render_cmd::ensure_parent(path, "--json")?;
+        std::fs::write(path, serde_json::to_string_pretty(&rows)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
+}

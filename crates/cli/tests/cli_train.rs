@@ -1,0 +1,293 @@
+//! `lightfarm train`, `relight` and `eval` through the real binary: a run killed with SIGKILL
+//! resumes the same loss curve; relight writes the image, its inset and intermediates; eval
+//! prints a row per model; bad input is an error naming it.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_lightfarm"));
+    c.env("LIGHTFARM_TRAIN_DEVICE", "cpu");
+    c
+}
+
+fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("run lightfarm")
+}
+
+/// Four 16² samples rendered and exported by `lightfarm demo` (training skipped).
+fn dataset() -> &'static Path {
+    static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    &DIR.get_or_init(|| {
+        let tmp = tempfile::tempdir().expect("tmp");
+        let out = tmp.path().join("demo");
+        let o = out.to_str().expect("utf8");
+        let r = run(&[
+            "demo",
+            "--out",
+            o,
+            "--count",
+            "4",
+            "--size",
+            "16",
+            "--spp",
+            "1",
+            "--train-steps",
+            "0",
+        ]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        (tmp, out.join("dataset"))
+    })
+    .1
+}
+
+fn write_config(dir: &Path, name: &str, steps: u64) -> PathBuf {
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(
+        &path,
+        format!(
+            "dataset = {:?}\nout = {:?}\nsplit = \"all\"\nsteps = {steps}\nbatch = 2\ncrop = 16\nlr = 2e-3\n\
+             checkpoint_every = 5\nloader_threads = 1\n[net]\nwidths = [8, 16, 32]\ncritic_width = 8\n",
+            dataset(),
+            dir.join(name)
+        ),
+    )
+    .expect("write config");
+    path
+}
+
+fn losses(run: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(run.join("losses.jsonl"))
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .collect()
+}
+
+#[test]
+fn a_run_killed_with_sigkill_resumes_the_same_loss_curve() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let straight = write_config(tmp.path(), "straight", 20);
+    let r = run(&["train", straight.to_str().expect("utf8")]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+
+    let killed = write_config(tmp.path(), "killed", 1000);
+    let mut child = bin()
+        .args(["train", killed.to_str().expect("utf8")])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let started = Instant::now();
+    while losses(&tmp.path().join("killed")).len() < 13 {
+        assert!(
+            started.elapsed() < Duration::from_secs(300),
+            "training made no progress"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    child.kill().expect("SIGKILL"); // Child::kill is SIGKILL on Unix
+    let _ = child.wait();
+
+    let r = run(&["train", killed.to_str().expect("utf8"), "--steps", "20"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let (a, b) = (
+        losses(&tmp.path().join("straight")),
+        losses(&tmp.path().join("killed")),
+    );
+    assert_eq!(b.len(), 20, "one line per step after the resume");
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x["step"], y["step"]);
+        let (x, y) = (
+            x["total"].as_f64().expect("total"),
+            y["total"].as_f64().expect("total"),
+        );
+        assert!((x - y).abs() <= 1e-4 * x.abs().max(1e-3), "{x} vs {y}");
+    }
+}
+
+#[test]
+fn relight_and_eval_write_what_they_promise() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let cfg = write_config(tmp.path(), "run", 4);
+    let r = run(&["train", cfg.to_str().expect("utf8")]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let model = tmp.path().join("run");
+    let m = model.to_str().expect("utf8");
+    let exr = std::fs::read_dir(dataset())
+        .expect("dataset")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.extension().is_some_and(|e| e == "exr"))
+        .expect("an exr");
+
+    // A sample EXR, relit under a catalog HDRI.
+    let out = tmp.path().join("relit.png");
+    let r = run(&[
+        "relight",
+        "--model",
+        m,
+        "--image",
+        exr.to_str().expect("utf8"),
+        "--hdri",
+        "studio_small_03",
+        "--out",
+        out.to_str().expect("utf8"),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let img = image::open(&out).expect("png").to_rgb8();
+    assert_eq!((img.width(), img.height()), (16, 16));
+    for side in ["normal", "normal_lens", "albedo", "diffuse", "specular"] {
+        assert!(
+            tmp.path().join(format!("relit_{side}.png")).is_file(),
+            "{side}"
+        );
+    }
+
+    // A plain PNG portrait with a mask, 20×12 (not a multiple of the UNet's 4: padded).
+    let png = tmp.path().join("photo.png");
+    let mask = tmp.path().join("mask.png");
+    image::RgbImage::from_fn(20, 12, |x, y| {
+        image::Rgb([(x * 12) as u8, (y * 20) as u8, 128])
+    })
+    .save(&png)
+    .expect("png");
+    image::GrayImage::from_fn(20, 12, |x, _| image::Luma([if x > 4 { 255 } else { 0 }]))
+        .save(&mask)
+        .expect("mask");
+    let out2 = tmp.path().join("photo_relit.png");
+    let r = run(&[
+        "relight",
+        "--model",
+        m,
+        "--image",
+        png.to_str().expect("utf8"),
+        "--mask",
+        mask.to_str().expect("utf8"),
+        "--hdri",
+        "venice_sunset",
+        "--rotation",
+        "-90",
+        "--flip",
+        "--out",
+        out2.to_str().expect("utf8"),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let img = image::open(&out2).expect("png").to_rgb8();
+    assert_eq!((img.width(), img.height()), (20, 12));
+    // Masked-out columns stay black (the inset is at the bottom right).
+    assert!((0..5).all(|x| img.get_pixel(x, 0).0 == [0, 0, 0]));
+
+    // eval: the input row and one per model.
+    let json = tmp.path().join("eval.json");
+    let r = run(&[
+        "eval",
+        "--model",
+        m,
+        "--model",
+        m,
+        "--split",
+        "all",
+        "--json",
+        json.to_str().expect("utf8"),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let table = String::from_utf8_lossy(&r.stdout);
+    assert!(
+        table.contains("MAE")
+            && table.contains("input (not relit)")
+            && table.matches("decomposed").count() == 2,
+        "{table}"
+    );
+    let rows: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("json");
+    assert_eq!(rows.as_array().map(Vec::len), Some(3));
+}
+
+#[test]
+fn bad_input_is_an_error_naming_it() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let cfg = write_config(tmp.path(), "run", 2);
+    let r = run(&["train", cfg.to_str().expect("utf8")]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let m = tmp.path().join("run");
+    let m = m.to_str().expect("utf8");
+    let junk = tmp.path().join("junk.png");
+    std::fs::write(&junk, b"not a png").expect("junk");
+    let out = tmp.path().join("o.png");
+    let o = out.to_str().expect("utf8");
+    let exr = std::fs::read_dir(dataset())
+        .expect("dataset")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.extension().is_some_and(|e| e == "exr"))
+        .expect("an exr");
+    let e = exr.to_str().expect("utf8");
+    for (args, needle) in [
+        (vec!["train", "no/such.toml"], "no/such.toml"),
+        (
+            vec![
+                "relight",
+                "--model",
+                "/no/model",
+                "--image",
+                e,
+                "--hdri",
+                "studio_small_03",
+                "--out",
+                o,
+            ],
+            "/no/model",
+        ),
+        (
+            vec![
+                "relight",
+                "--model",
+                m,
+                "--image",
+                junk.to_str().expect("utf8"),
+                "--hdri",
+                "studio_small_03",
+                "--out",
+                o,
+            ],
+            "junk.png",
+        ),
+        (
+            vec![
+                "relight",
+                "--model",
+                m,
+                "--image",
+                e,
+                "--hdri",
+                "no_such_hdri",
+                "--out",
+                o,
+            ],
+            "no_such_hdri",
+        ),
+        (
+            vec![
+                "relight",
+                "--model",
+                m,
+                "--image",
+                e,
+                "--hdri",
+                "studio_small_03",
+                "--out",
+                "/no/dir/o.png",
+            ],
+            "/no/dir",
+        ),
+        (vec!["eval", "--model", m, "--split", "bogus"], "bogus"),
+    ] {
+        let r = run(&args);
+        assert_eq!(r.status.code(), Some(1), "{args:?}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    assert!(!out.exists());
+}

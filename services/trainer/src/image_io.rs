@@ -1,0 +1,153 @@
+//! Portrait images in and out of `relight`: PNG/JPEG (sRGB) or OpenEXR (linear), an optional
+//! mask, and display PNGs.
+
+use std::io::Cursor;
+use std::path::Path;
+
+use exr::prelude::{ReadChannels, ReadLayers};
+use lightfarm_nets::metrics::srgb_encode;
+
+use crate::sample::{decode_sample, SampleImages};
+use crate::TrainError;
+
+/// An input portrait in linear RGB with its foreground mask.
+pub struct Portrait {
+    pub width: usize,
+    pub height: usize,
+    pub rgb: Vec<[f32; 3]>,
+    pub mask: Vec<f32>,
+    /// Set when the input was a lightfarm sample EXR (its camera orients the light maps).
+    pub sample: Option<SampleImages>,
+}
+
+fn srgb_decode(v: f32) -> f32 {
+    if v <= 0.040_45 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Reads `path`: a lightfarm sample EXR (lit0 and its mask), any RGB(A) EXR, or an 8/16-bit
+/// image (sRGB decoded; alpha is the mask). `mask` (white = subject) overrides the built-in one.
+pub fn load_portrait(path: &Path, mask: Option<&Path>) -> Result<Portrait, TrainError> {
+    let bad = |r: String| TrainError::Input(format!("--image {}: {r}", path.display()));
+    let bytes = std::fs::read(path).map_err(|e| TrainError::io(path, e))?;
+    let is_exr = bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]);
+    let mut p = if is_exr {
+        match decode_sample(&bytes, &path.display().to_string()) {
+            Ok(s) => Portrait {
+                width: s.width,
+                height: s.height,
+                rgb: s.lit[0].clone(),
+                mask: s.mask.clone(),
+                sample: Some(s),
+            },
+            Err(_) => load_plain_exr(&bytes).map_err(bad)?,
+        }
+    } else {
+        let img = image::load_from_memory(&bytes)
+            .map_err(|e| bad(format!("not a readable image ({e})")))?;
+        let rgba = img.to_rgba32f();
+        let (w, h) = (rgba.width() as usize, rgba.height() as usize);
+        let has_alpha = img.color().has_alpha();
+        Portrait {
+            width: w,
+            height: h,
+            rgb: rgba
+                .pixels()
+                .map(|p| [p[0], p[1], p[2]].map(srgb_decode))
+                .collect(),
+            mask: rgba
+                .pixels()
+                .map(|p| if has_alpha { p[3] } else { 1.0 })
+                .collect(),
+            sample: None,
+        }
+    };
+    if p.width == 0 || p.height == 0 || p.width > 8192 || p.height > 8192 {
+        return Err(bad(format!(
+            "{}x{} is outside 1..=8192 pixels a side",
+            p.width, p.height
+        )));
+    }
+    if let Some(m) = mask {
+        let img = image::open(m)
+            .map_err(|e| {
+                TrainError::Input(format!(
+                    "--mask {}: not a readable image ({e})",
+                    m.display()
+                ))
+            })?
+            .to_luma32f();
+        if (img.width() as usize, img.height() as usize) != (p.width, p.height) {
+            return Err(TrainError::Input(format!(
+                "--mask {} is {}x{} but the image is {}x{}",
+                m.display(),
+                img.width(),
+                img.height(),
+                p.width,
+                p.height
+            )));
+        }
+        p.mask = img.pixels().map(|v| v[0].clamp(0.0, 1.0)).collect();
+    }
+    for (c, &m) in p.rgb.iter_mut().zip(&p.mask) {
+        *c = c.map(|v| if v.is_finite() { v.max(0.0) * m } else { 0.0 });
+    }
+    Ok(p)
+}
+
+fn load_plain_exr(bytes: &[u8]) -> Result<Portrait, String> {
+    let img = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(|e| format!("not a readable OpenEXR file ({e})"))?;
+    let layer = &img.layer_data;
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let find = |n: &str| {
+        layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string().eq_ignore_ascii_case(n))
+            .map(|c| c.sample_data.values_as_f32().collect::<Vec<f32>>())
+    };
+    let (r, g, b) = match (find("R"), find("G"), find("B")) {
+        (Some(r), Some(g), Some(b)) => (r, g, b),
+        _ => return Err("has no R, G, B channels".into()),
+    };
+    let a = find("A").unwrap_or_else(|| vec![1.0; w * h]);
+    Ok(Portrait {
+        width: w,
+        height: h,
+        rgb: (0..w * h).map(|i| [r[i], g[i], b[i]]).collect(),
+        mask: a.into_iter().map(|v| v.clamp(0.0, 1.0)).collect(),
+        sample: None,
+    })
+}
+
+/// Writes linear RGB as an sRGB PNG (clamped).
+pub fn write_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    rgb: &[[f32; 3]],
+) -> Result<(), TrainError> {
+    let data: Vec<u8> = rgb
+        .iter()
+        .flat_map(|p| p.map(|v| (srgb_encode(v) * 255.0 + 0.5) as u8))
+        .collect();
+    let img = image::RgbImage::from_raw(width as u32, height as u32, data).ok_or_else(|| {
+        TrainError::Input(format!(
+            "{}: image buffer of the wrong size",
+            path.display()
+        ))
+    })?;
+    img.save(path)
+        .map_err(|e| TrainError::Input(format!("writing {}: {e}", path.display())))
+}

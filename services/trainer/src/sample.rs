@@ -1,0 +1,108 @@
+//! A rendered sample as the trainer sees it: the passes of its EXR and the spec in its header.
+
+use std::io::Cursor;
+
+use exr::prelude::{AttributeValue, ReadChannels, ReadLayers};
+use lightfarm_scene::expand::SampleSpec;
+
+use crate::TrainError;
+
+/// Header attribute the render worker writes: `{"renderer": .., "sample": SampleSpec}`.
+pub const SAMPLE_ATTRIBUTE: &str = "lightfarm.sample";
+
+/// Row-major RGB passes and the coverage mask of one sample.
+#[derive(Clone, Debug)]
+pub struct SampleImages {
+    pub width: usize,
+    pub height: usize,
+    /// Radiance under HDRI 0 and HDRI 1.
+    pub lit: [Vec<[f32; 3]>; 2],
+    pub albedo: Vec<[f32; 3]>,
+    pub normal: Vec<[f32; 3]>,
+    pub normal_lens: Vec<[f32; 3]>,
+    pub mask: Vec<f32>,
+    pub spec: SampleSpec,
+}
+
+/// Decodes a sample EXR; `name` (a path or sample id) is what errors mention.
+pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainError> {
+    let bad = |reason: String| TrainError::Sample {
+        name: name.to_owned(),
+        reason,
+    };
+    let img = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(Cursor::new(bytes))
+        .map_err(|e| bad(format!("not a readable OpenEXR file ({e})")))?;
+    let layer = &img.layer_data;
+    let (width, height) = (layer.size.width(), layer.size.height());
+    let channel = |n: &str| -> Result<Vec<f32>, TrainError> {
+        let c = layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == n)
+            .ok_or_else(|| bad(format!("has no channel {n}; is it a lightfarm sample?")))?;
+        let v: Vec<f32> = c.sample_data.values_as_f32().collect();
+        if v.len() != width * height {
+            return Err(bad(format!(
+                "channel {n} holds {} values for {width}x{height}",
+                v.len()
+            )));
+        }
+        Ok(v)
+    };
+    let rgb = |base: &str, names: [&str; 3]| -> Result<Vec<[f32; 3]>, TrainError> {
+        let [a, b, c] = names.map(|n| channel(&format!("{base}.{n}")));
+        let (a, b, c) = (a?, b?, c?);
+        Ok((0..width * height)
+            .map(|i| [a[i], b[i], c[i]].map(|v| if v.is_finite() { v } else { 0.0 }))
+            .collect())
+    };
+    let text =
+        match layer
+            .attributes
+            .other
+            .get(&exr::prelude::Text::from(SAMPLE_ATTRIBUTE))
+        {
+            Some(AttributeValue::Text(t)) => t.to_string(),
+            _ => return Err(bad(format!(
+                "has no {SAMPLE_ATTRIBUTE} header attribute (not written by a lightfarm worker)"
+            ))),
+        };
+    let meta: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| bad(format!("{SAMPLE_ATTRIBUTE} is not JSON ({e})")))?;
+    let spec: SampleSpec = serde_json::from_value(
+        meta.get("sample")
+            .cloned()
+            .unwrap_or(serde_json::Value::Null),
+    )
+    .map_err(|e| {
+        bad(format!(
+            "{SAMPLE_ATTRIBUTE} holds no valid sample spec ({e})"
+        ))
+    })?;
+    Ok(SampleImages {
+        width,
+        height,
+        lit: [rgb("lit0", ["R", "G", "B"])?, rgb("lit1", ["R", "G", "B"])?],
+        albedo: rgb("albedo", ["R", "G", "B"])?,
+        normal: rgb("normal", ["X", "Y", "Z"])?,
+        normal_lens: rgb("normal_lens", ["X", "Y", "Z"])?,
+        mask: channel("mask.A")?
+            .into_iter()
+            .map(|v| {
+                if v.is_finite() {
+                    v.clamp(0.0, 1.0)
+                } else {
+                    0.0
+                }
+            })
+            .collect(),
+        spec,
+    })
+}

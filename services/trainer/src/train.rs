@@ -1,0 +1,401 @@
+//! The training loop, its loss log, and resumable checkpoints.
+//!
+//! A run directory holds `run.json` (the resolved config), `losses.jsonl` (one line per step)
+//! and `checkpoints/step-NNNNNNNNN/` with the generator and critic weights (safetensors), both
+//! Adam states and `state.json`; `checkpoints/latest` names the newest complete one. A
+//! checkpoint is written to a temporary directory and renamed, and `latest` is replaced by
+//! rename, so `kill -9` at any moment leaves the previous checkpoint intact. Batches are a pure
+//! function of (seed, step), so a resumed run continues the same loss curve.
+
+use std::fs;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use burn::optim::{GradientsParams, ModuleOptimizer};
+use burn::prelude::*;
+use lightfarm_nets::{
+    critic_loss, generator_loss, load_weights, save_weights, stable_param_ids, PatchGan,
+    PatchGanConfig, RelightNet,
+};
+use lightfarm_scene::Catalog;
+use serde::{Deserialize, Serialize};
+
+use crate::config::TrainConfig;
+use crate::data::{to_device, Dataset, PrefetchParams, Prefetcher};
+use crate::lights::LightCache;
+use crate::TrainError;
+
+pub const RUN_FILE: &str = "run.json";
+pub const LOSS_FILE: &str = "losses.jsonl";
+pub const CHECKPOINTS: &str = "checkpoints";
+pub const LATEST: &str = "latest";
+pub const MODEL_FILE: &str = "model.safetensors";
+const CRITIC_FILE: &str = "critic.safetensors";
+const OPTIM_FILE: &str = "optim.bpk";
+const CRITIC_OPTIM_FILE: &str = "critic_optim.bpk";
+const STATE_FILE: &str = "state.json";
+/// The network shape next to its weights, so a checkpoint directory is a self-contained model.
+pub const NET_FILE: &str = "net.json";
+
+/// One line of `losses.jsonl`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StepLog {
+    pub step: u64,
+    pub total: f32,
+    pub normal: f32,
+    pub normal_lens: f32,
+    pub albedo: f32,
+    pub relit: f32,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub residual: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adversarial: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub critic: Option<f32>,
+    pub samples_per_second: f32,
+}
+
+#[derive(Serialize, Deserialize)]
+struct CheckpointState {
+    /// Steps completed: training resumes at this step.
+    step: u64,
+}
+
+#[derive(Clone, Debug)]
+pub struct TrainSummary {
+    pub start_step: u64,
+    pub end_step: u64,
+    pub checkpoint: PathBuf,
+    pub cancelled: bool,
+}
+
+/// What training reports as it goes; `on_step` runs after every step.
+pub trait Observer {
+    fn on_start(&mut self, _start: u64, _end: u64) {}
+    fn on_step(&mut self, _log: &StepLog) {}
+}
+
+impl Observer for () {}
+
+/// Trains `cfg` to `cfg.steps`, resuming from the run directory's newest checkpoint. Stops
+/// early, after a checkpoint, when `cancel` is set.
+pub fn train(
+    cfg: &TrainConfig,
+    catalog: Catalog,
+    observer: &mut dyn Observer,
+    cancel: &AtomicBool,
+) -> Result<TrainSummary, TrainError> {
+    fs::create_dir_all(cfg.out.join(CHECKPOINTS)).map_err(|e| TrainError::io(&cfg.out, e))?;
+    check_run_file(cfg)?;
+    let base = lightfarm_nets::device::select(&cfg.device)
+        .map_err(|e| TrainError::Config(e.to_string()))?;
+    let device = base.autodiff();
+    device.seed(cfg.seed);
+
+    let model = cfg
+        .net
+        .relight()
+        .init(&device)
+        .map_err(|e| TrainError::Config(e.to_string()))?;
+    let mut model = stable_param_ids(model, 1);
+    let mut critic = stable_param_ids(
+        PatchGanConfig::new()
+            .with_width(cfg.net.critic_width)
+            .init(&device),
+        2,
+    );
+    let mut optim = lightfarm_nets::optimizer();
+    let mut critic_optim = lightfarm_nets::optimizer();
+    let mut start = 0u64;
+    if let Some(dir) = latest_checkpoint(&cfg.out)? {
+        (model, critic, optim, critic_optim, start) =
+            load_checkpoint(&dir, model, critic, optim, critic_optim)?;
+        tracing::info!(step = start, checkpoint = %dir.display(), "resuming");
+    }
+    truncate_losses(&cfg.out.join(LOSS_FILE), start)?;
+    observer.on_start(start, cfg.steps);
+    if start >= cfg.steps {
+        let checkpoint = latest_checkpoint(&cfg.out)?.unwrap_or_default();
+        return Ok(TrainSummary {
+            start_step: start,
+            end_step: start,
+            checkpoint,
+            cancelled: false,
+        });
+    }
+
+    let dataset = Arc::new(Dataset::open(&cfg.dataset, &cfg.split)?);
+    let lights = Arc::new(LightCache::new(catalog));
+    let mut prefetch = Prefetcher::start(
+        dataset.clone(),
+        lights,
+        PrefetchParams {
+            seed: cfg.seed,
+            batch: cfg.batch,
+            crop: cfg.crop,
+            start,
+            end: cfg.steps,
+            threads: cfg.loader_threads,
+        },
+    );
+    let multiple = cfg.net.relight().size_multiple();
+    let mut log = fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(cfg.out.join(LOSS_FILE))
+        .map_err(|e| TrainError::io(&cfg.out.join(LOSS_FILE), e))?;
+    let mut checkpoint = PathBuf::new();
+    let mut step = start;
+    let mut cancelled = false;
+    while step < cfg.steps {
+        let started = Instant::now();
+        let examples = prefetch.next_batch()?;
+        let size = examples[0].size;
+        if size % multiple != 0 {
+            return Err(TrainError::Config(format!(
+                "images are {size} px; with {} UNet levels they must be a multiple of {multiple}: set `crop` to a multiple of {multiple}",
+                cfg.net.widths.len()
+            )));
+        }
+        let batch = to_device(&examples, &device)?;
+        let out = model.forward(batch.input, batch.targets.mask.clone(), &batch.light);
+        let adversarial = step >= cfg.net.adversarial_from && cfg.loss.adversarial > 0.0;
+        let loss = generator_loss(
+            &out,
+            &batch.targets,
+            &cfg.loss,
+            adversarial.then_some(&critic),
+        );
+        let total = scalar(&loss.total);
+        if !total.is_finite() {
+            return Err(TrainError::Diverged { step, loss: total });
+        }
+        let grads = GradientsParams::from_grads(loss.total.backward(), &model);
+        model = optim.step(cfg.lr, model, grads);
+
+        let critic_value = if cfg.loss.adversarial > 0.0 {
+            let c = critic_loss(
+                &critic,
+                batch.targets.relit.clone(),
+                out.relit.clone().detach(),
+                batch.targets.mask.clone(),
+            );
+            let value = scalar(&c);
+            let grads = GradientsParams::from_grads(c.backward(), &critic);
+            critic = critic_optim.step(cfg.lr, critic, grads);
+            Some(value)
+        } else {
+            None
+        };
+        step += 1;
+        let entry = StepLog {
+            step,
+            total,
+            normal: scalar(&loss.normal),
+            normal_lens: scalar(&loss.normal_lens),
+            albedo: scalar(&loss.albedo),
+            relit: scalar(&loss.relit),
+            residual: loss.residual.as_ref().map(scalar),
+            adversarial: loss.adversarial.as_ref().map(scalar),
+            critic: critic_value,
+            samples_per_second: examples.len() as f32 / started.elapsed().as_secs_f32().max(1e-9),
+        };
+        let line = serde_json::to_string(&entry).map_err(|e| TrainError::Config(e.to_string()))?;
+        writeln!(log, "{line}").map_err(|e| TrainError::io(&cfg.out.join(LOSS_FILE), e))?;
+        observer.on_step(&entry);
+        cancelled = cancel.load(Ordering::Relaxed);
+        if step % cfg.checkpoint_every == 0 || step == cfg.steps || cancelled {
+            log.flush()
+                .map_err(|e| TrainError::io(&cfg.out.join(LOSS_FILE), e))?;
+            checkpoint =
+                save_checkpoint(&cfg.out, step, &model, &critic, &optim, &critic_optim, cfg)?;
+        }
+        if cancelled {
+            break;
+        }
+    }
+    Ok(TrainSummary {
+        start_step: start,
+        end_step: step,
+        checkpoint,
+        cancelled,
+    })
+}
+
+fn scalar(t: &Tensor<1>) -> f32 {
+    t.clone().into_scalar::<f32>()
+}
+
+/// Writes `run.json` on the first run; later runs must have the same network and data, or the
+/// checkpoints there would be resumed into the wrong model.
+fn check_run_file(cfg: &TrainConfig) -> Result<(), TrainError> {
+    let path = cfg.out.join(RUN_FILE);
+    if let Ok(text) = fs::read_to_string(&path) {
+        let old: TrainConfig = serde_json::from_str(&text).map_err(|e| {
+            TrainError::Config(format!(
+                "{}: unreadable ({e}); move the run directory away",
+                path.display()
+            ))
+        })?;
+        if old.net != cfg.net
+            || old.seed != cfg.seed
+            || old.batch != cfg.batch
+            || old.crop != cfg.crop
+        {
+            return Err(TrainError::Config(format!(
+                "{} was trained with a different net/seed/batch/crop; resume with the same settings \
+                 or give this config another `out` directory",
+                cfg.out.display()
+            )));
+        }
+    }
+    let text = serde_json::to_string_pretty(cfg).map_err(|e| TrainError::Config(e.to_string()))?;
+    write_atomic(&path, text.as_bytes())
+}
+
+pub fn latest_checkpoint(out: &Path) -> Result<Option<PathBuf>, TrainError> {
+    let latest = out.join(CHECKPOINTS).join(LATEST);
+    match fs::read_to_string(&latest) {
+        Ok(name) => {
+            let dir = out.join(CHECKPOINTS).join(name.trim());
+            if dir.join(STATE_FILE).is_file() {
+                Ok(Some(dir))
+            } else {
+                Err(TrainError::Checkpoint(format!(
+                    "{} names {}, which is incomplete; delete {} to start over",
+                    latest.display(),
+                    dir.display(),
+                    latest.display()
+                )))
+            }
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(TrainError::io(&latest, e)),
+    }
+}
+
+fn save_checkpoint(
+    out: &Path,
+    step: u64,
+    model: &RelightNet,
+    critic: &PatchGan,
+    optim: &ModuleOptimizer,
+    critic_optim: &ModuleOptimizer,
+    cfg: &TrainConfig,
+) -> Result<PathBuf, TrainError> {
+    let root = out.join(CHECKPOINTS);
+    let name = format!("step-{step:09}");
+    let tmp = root.join(format!(".{name}.partial"));
+    let dir = root.join(&name);
+    if tmp.exists() {
+        fs::remove_dir_all(&tmp).map_err(|e| TrainError::io(&tmp, e))?;
+    }
+    fs::create_dir_all(&tmp).map_err(|e| TrainError::io(&tmp, e))?;
+    let ck = |e: String| TrainError::Checkpoint(e);
+    save_weights(model, &tmp.join(MODEL_FILE)).map_err(|e| ck(e.to_string()))?;
+    save_weights(critic, &tmp.join(CRITIC_FILE)).map_err(|e| ck(e.to_string()))?;
+    optim
+        .save(tmp.join(OPTIM_FILE))
+        .map_err(|e| ck(format!("optimizer state: {e:?}")))?;
+    critic_optim
+        .save(tmp.join(CRITIC_OPTIM_FILE))
+        .map_err(|e| ck(format!("critic optimizer state: {e:?}")))?;
+    let net = serde_json::to_vec_pretty(&cfg.net).map_err(|e| ck(e.to_string()))?;
+    write_atomic(&tmp.join(NET_FILE), &net)?;
+    let state = serde_json::to_vec(&CheckpointState { step }).map_err(|e| ck(e.to_string()))?;
+    write_atomic(&tmp.join(STATE_FILE), &state)?;
+    sync_dir(&tmp);
+    if dir.exists() {
+        fs::remove_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;
+    }
+    fs::rename(&tmp, &dir).map_err(|e| TrainError::io(&dir, e))?;
+    write_atomic(&root.join(LATEST), name.as_bytes())?;
+    prune(&root, &name, cfg.keep_checkpoints);
+    Ok(dir)
+}
+
+#[allow(clippy::type_complexity)]
+fn load_checkpoint(
+    dir: &Path,
+    model: RelightNet,
+    critic: PatchGan,
+    optim: ModuleOptimizer,
+    critic_optim: ModuleOptimizer,
+) -> Result<(RelightNet, PatchGan, ModuleOptimizer, ModuleOptimizer, u64), TrainError> {
+    let ck = |e: String| TrainError::Checkpoint(format!("{}: {e}", dir.display()));
+    let model = load_weights(model, &dir.join(MODEL_FILE)).map_err(|e| ck(e.to_string()))?;
+    let critic = load_weights(critic, &dir.join(CRITIC_FILE)).map_err(|e| ck(e.to_string()))?;
+    let optim = optim
+        .load(dir.join(OPTIM_FILE))
+        .map_err(|e| ck(format!("optimizer state: {e:?}")))?;
+    let critic_optim = critic_optim
+        .load(dir.join(CRITIC_OPTIM_FILE))
+        .map_err(|e| ck(format!("critic optimizer state: {e:?}")))?;
+    let state: CheckpointState = serde_json::from_slice(
+        &fs::read(dir.join(STATE_FILE)).map_err(|e| TrainError::io(dir, e))?,
+    )
+    .map_err(|e| ck(format!("{STATE_FILE}: {e}")))?;
+    Ok((model, critic, optim, critic_optim, state.step))
+}
+
+/// Drops loss lines past `step`: steps after the checkpoint are redone on resume.
+fn truncate_losses(path: &Path, step: u64) -> Result<(), TrainError> {
+    let Ok(text) = fs::read_to_string(path) else {
+        return Ok(());
+    };
+    let kept: Vec<&str> = text
+        .lines()
+        .filter(|l| serde_json::from_str::<StepLog>(l).is_ok_and(|e| e.step <= step))
+        .collect();
+    let mut out = kept.join("\n");
+    if !out.is_empty() {
+        out.push('\n');
+    }
+    write_atomic(path, out.as_bytes())
+}
+
+pub fn read_losses(out: &Path) -> Result<Vec<StepLog>, TrainError> {
+    let path = out.join(LOSS_FILE);
+    let text = fs::read_to_string(&path).map_err(|e| TrainError::io(&path, e))?;
+    Ok(text
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .collect())
+}
+
+fn prune(root: &Path, newest: &str, keep: usize) {
+    let Ok(entries) = fs::read_dir(root) else {
+        return;
+    };
+    let mut names: Vec<String> = entries
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("step-") && n.as_str() != newest)
+        .collect();
+    names.sort();
+    let excess = names.len().saturating_sub(keep);
+    for n in &names[..excess] {
+        let _ = fs::remove_dir_all(root.join(n));
+    }
+}
+
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TrainError> {
+    let tmp = path.with_extension("tmp");
+    let mut f = fs::File::create(&tmp).map_err(|e| TrainError::io(&tmp, e))?;
+    f.write_all(bytes).map_err(|e| TrainError::io(&tmp, e))?;
+    f.sync_all().map_err(|e| TrainError::io(&tmp, e))?;
+    fs::rename(&tmp, path).map_err(|e| TrainError::io(path, e))
+}
+
+fn sync_dir(dir: &Path) {
+    if let Ok(entries) = fs::read_dir(dir) {
+        for e in entries.flatten() {
+            if let Ok(f) = fs::File::open(e.path()) {
+                let _ = f.sync_all();
+            }
+        }
+    }
+}

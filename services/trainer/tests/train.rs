@@ -1,0 +1,243 @@
+//! Training on a dataset the project rendered: the networks overfit four samples (both render
+//! nets), the loss falls, and a resumed run continues the same loss curve.
+
+mod common;
+
+use std::sync::atomic::AtomicBool;
+
+use lightfarm_nets::RenderNet;
+use lightfarm_scene::Catalog;
+use lightfarm_trainer::config::{NetConfig, TrainConfig};
+use lightfarm_trainer::eval::{evaluate, table};
+use lightfarm_trainer::train::read_losses;
+use lightfarm_trainer::StepLog;
+
+fn config(out: &std::path::Path, steps: u64, render_net: RenderNet) -> TrainConfig {
+    let mut cfg: TrainConfig = toml::from_str(&format!(
+        "dataset = {:?}\nout = {:?}\nsplit = \"all\"\nsteps = {steps}\nbatch = {}\nlr = 5e-3\ncheckpoint_every = 10\n\
+         device = \"cpu\"\nloader_threads = 1\n[loss]\nadversarial = 0.0\n",
+        common::dataset(),
+        out,
+        common::COUNT
+    ))
+    .expect("config");
+    cfg.net = NetConfig {
+        widths: vec![8, 16, 32],
+        render_net,
+        critic_width: 8,
+        adversarial_from: 0,
+    };
+    cfg.validate().expect("valid");
+    cfg
+}
+
+fn mean(v: &[StepLog], f: impl Fn(&StepLog) -> f32) -> f32 {
+    v.iter().map(f).sum::<f32>() / v.len() as f32
+}
+
+/// The issue's bar: trained on four samples, the relit error is far below the error between
+/// the input and the target, and the loss falls in trend. Measured at 300 steps (all CI can
+/// afford on flex, ~0.35 s/step): MAE 0.044 vs 0.079, MSE 0.008 vs 0.024; still falling.
+#[test]
+fn both_render_nets_overfit_four_samples() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut models = Vec::new();
+    // The paper's render net is held to the issue's bar; the ablation only has to train (its
+    // row is there to be compared), so it gets half the steps to keep the suite short.
+    for (net, steps) in [(RenderNet::Decomposed, 300u64), (RenderNet::Blackbox, 150)] {
+        let out = tmp.path().join(format!("{net:?}"));
+        let cfg = config(&out, steps, net);
+        let summary = lightfarm_trainer::train(
+            &cfg,
+            Catalog::builtin().unwrap(),
+            &mut (),
+            &AtomicBool::new(false),
+        )
+        .unwrap();
+        assert_eq!(summary.end_step, steps);
+        let losses = read_losses(&out).unwrap();
+        assert_eq!(losses.len(), steps as usize);
+        // Falling in trend: the mean over each fifth of the run is below the one before.
+        let fifths: Vec<f32> = losses
+            .chunks(steps as usize / 5)
+            .map(|c| mean(c, |l| l.total))
+            .collect();
+        let speed = mean(&losses, |l| l.samples_per_second);
+        println!("{net:?}: loss by fifths {fifths:?}, {speed:.1} samples/s");
+        assert!(
+            fifths.windows(2).all(|w| w[1] < w[0]),
+            "{net:?}: loss by fifths {fifths:?}"
+        );
+        models.push(out);
+    }
+    let rows = evaluate(
+        &models,
+        common::dataset(),
+        "all",
+        Catalog::builtin().unwrap(),
+        "cpu",
+        |_, _| {},
+    )
+    .unwrap();
+    println!("{}", table(&rows));
+    assert_eq!(rows.len(), 3);
+    let input = rows[0].mae;
+    assert!(
+        rows[1].mae < 0.6 * input,
+        "decomposed: relit MAE {} vs input {input}",
+        rows[1].mae
+    );
+    assert!(
+        rows[1].mse < 0.4 * rows[0].mse,
+        "decomposed: relit MSE {} vs input {}",
+        rows[1].mse,
+        rows[0].mse
+    );
+    assert!(
+        rows[2].mae < input,
+        "blackbox: relit MAE {} vs input {input}",
+        rows[2].mae
+    );
+    for row in &rows[1..] {
+        assert!(
+            row.ssim > rows[0].ssim,
+            "{}: SSIM {} vs input {}",
+            row.render_net,
+            row.ssim,
+            rows[0].ssim
+        );
+        assert!(row.sh_error.is_some_and(f64::is_finite));
+    }
+}
+
+/// Stopping after step 20 and resuming to 30 gives the losses of an uninterrupted 30-step run.
+#[test]
+fn a_resumed_run_continues_the_same_loss_curve() {
+    let tmp = tempfile::tempdir().unwrap();
+    let straight = tmp.path().join("straight");
+    let resumed = tmp.path().join("resumed");
+    let catalog = || Catalog::builtin().unwrap();
+    let stop = AtomicBool::new(false);
+    lightfarm_trainer::train(
+        &config(&straight, 30, RenderNet::Decomposed),
+        catalog(),
+        &mut (),
+        &stop,
+    )
+    .unwrap();
+    lightfarm_trainer::train(
+        &config(&resumed, 25, RenderNet::Decomposed),
+        catalog(),
+        &mut (),
+        &stop,
+    )
+    .unwrap();
+    // Steps 21..25 were logged after the step-20 checkpoint and are redone on resume; drop the
+    // step-25 checkpoint to stand for a crash between checkpoints.
+    let ck = resumed.join("checkpoints");
+    std::fs::remove_dir_all(ck.join("step-000000025")).unwrap();
+    std::fs::write(ck.join("latest"), "step-000000020").unwrap();
+    let summary = lightfarm_trainer::train(
+        &config(&resumed, 30, RenderNet::Decomposed),
+        catalog(),
+        &mut (),
+        &stop,
+    )
+    .unwrap();
+    assert_eq!((summary.start_step, summary.end_step), (20, 30));
+    let (a, b) = (
+        read_losses(&straight).unwrap(),
+        read_losses(&resumed).unwrap(),
+    );
+    assert_eq!(
+        b.len(),
+        30,
+        "losses.jsonl keeps one line per step after a resume"
+    );
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.step, y.step);
+        let tol = 1e-4 * x.total.abs().max(1e-3);
+        assert!(
+            (x.total - y.total).abs() <= tol,
+            "step {}: {} vs {}",
+            x.step,
+            x.total,
+            y.total
+        );
+    }
+}
+
+#[test]
+fn bad_configs_are_refused_with_the_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("train.toml");
+    for (text, needle) in [
+        ("dataset = \"d\"\nout = \"o\"\nsteps = 0\n", "steps"),
+        ("dataset = \"d\"\nout = \"o\"\nbatch = 0\n", "batch"),
+        ("dataset = \"d\"\nout = \"o\"\ncrop = 30\n", "crop"),
+        ("dataset = \"d\"\nout = \"o\"\nlr = -1.0\n", "lr"),
+        ("dataset = \"d\"\nout = \"o\"\nbogus = 1\n", "bogus"),
+        (
+            "dataset = \"d\"\nout = \"o\"\n[net]\nwidths = []\n",
+            "widths",
+        ),
+        (
+            "dataset = \"d\"\nout = \"o\"\n[net]\nrender_net = \"magic\"\n",
+            "render_net",
+        ),
+        ("dataset = [", "train.toml"),
+    ] {
+        std::fs::write(&path, text).unwrap();
+        let err = TrainConfig::load(&path).expect_err(text).to_string();
+        assert!(err.contains(needle), "{text:?}: {err}");
+    }
+}
+
+#[test]
+fn a_missing_or_webdataset_export_is_refused_with_the_fix() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut cfg = config(&tmp.path().join("run"), 5, RenderNet::Decomposed);
+    cfg.dataset = tmp.path().join("nowhere");
+    let err = lightfarm_trainer::train(
+        &cfg,
+        Catalog::builtin().unwrap(),
+        &mut (),
+        &AtomicBool::new(false),
+    )
+    .expect_err("no dataset")
+    .to_string();
+    assert!(
+        err.contains("lightfarm export") && err.contains("nowhere"),
+        "{err}"
+    );
+}
+
+#[test]
+fn truncated_or_foreign_exrs_are_errors_naming_the_sample() {
+    let exr_path = std::fs::read_dir(common::dataset())
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.extension().is_some_and(|e| e == "exr"))
+        .unwrap();
+    let bytes = std::fs::read(&exr_path).unwrap();
+    let good = lightfarm_trainer::sample::decode_sample(&bytes, "s0").unwrap();
+    assert_eq!((good.width, good.height), (common::SIZE, common::SIZE));
+    for cut in [0, 8, bytes.len() / 2, bytes.len() - 1] {
+        let err = lightfarm_trainer::sample::decode_sample(&bytes[..cut], "s0")
+            .expect_err("truncated")
+            .to_string();
+        assert!(err.contains("s0"), "{err}");
+    }
+    let err = lightfarm_trainer::sample::decode_sample(b"not an exr at all", "junk")
+        .expect_err("junk")
+        .to_string();
+    assert!(err.contains("junk") && err.contains("OpenEXR"), "{err}");
+}
+
+#[test]
+fn the_example_config_is_valid() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/train.toml");
+    let cfg = TrainConfig::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(cfg.net.render_net, RenderNet::Decomposed);
+    assert!(cfg.dataset.ends_with("out/dataset"));
+}
