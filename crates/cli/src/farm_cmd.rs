@@ -32,6 +32,32 @@ pub enum Serve {
     Coordinator(CoordinatorArgs),
     /// A render worker: pulls samples from the coordinator and renders them.
     Worker(WorkerArgs),
+    /// The trainer: train jobs on folder exports, checkpoints, relighting (gRPC).
+    Trainer(TrainerArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct TrainerArgs {
+    /// Job records and run directories; unfinished jobs resume from here after a restart.
+    #[arg(
+        long,
+        env = "LIGHTFARM_TRAINER_DATA",
+        default_value = "lightfarm-trainer"
+    )]
+    pub data: PathBuf,
+    /// Directory holding folder exports; jobs name datasets relative to it.
+    #[arg(long, env = "LIGHTFARM_DATASETS", default_value = ".")]
+    pub datasets: PathBuf,
+    #[arg(long, env = "LIGHTFARM_TRAINER_LISTEN", default_value = "0.0.0.0:7071")]
+    pub listen: String,
+    #[arg(long, env = "LIGHTFARM_TOKEN", hide_env_values = true)]
+    pub token: String,
+    /// Asset catalog the datasets were rendered from (default: the built-in one).
+    #[arg(long)]
+    pub catalog: Option<PathBuf>,
+    /// auto, cpu or gpu.
+    #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE", default_value = "auto")]
+    pub device: String,
 }
 
 #[derive(Args, Debug)]
@@ -167,7 +193,26 @@ pub fn serve(cmd: Serve) -> Result<()> {
     match cmd {
         Serve::Coordinator(a) => rt.block_on(serve_coordinator(a)),
         Serve::Worker(a) => rt.block_on(serve_worker(a)),
+        Serve::Trainer(a) => rt.block_on(serve_trainer(a)),
     }
+}
+
+async fn serve_trainer(a: TrainerArgs) -> Result<()> {
+    let catalog = crate::spec_cmd::load_catalog(&a.catalog)?;
+    let svc = lightfarm_trainer::service::TrainerService::open(
+        lightfarm_trainer::service::ServiceConfig {
+            data: a.data.clone(),
+            datasets: a.datasets.clone(),
+            catalog,
+            device: a.device.clone(),
+        },
+    )?;
+    let listener = tokio::net::TcpListener::bind(&a.listen)
+        .await
+        .with_context(|| format!("--listen {}: cannot bind", a.listen))?;
+    tracing::info!(listen = %a.listen, data = %a.data.display(), "trainer serving");
+    svc.serve(listener, &a.token, shutdown_signal()).await?;
+    Ok(())
 }
 
 async fn serve_coordinator(a: CoordinatorArgs) -> Result<()> {

@@ -8,3 +8,35 @@
 pub mod v1 {
     tonic::include_proto!("lightfarm.v1");
 }
+
+/// Bearer-token checking shared by every lightfarm service.
+pub mod auth {
+    use tonic::{Request, Status};
+
+    /// An interceptor that accepts requests carrying `authorization: Bearer <token>`;
+    /// `service` names where the token is configured, for the error a client sees.
+    pub fn bearer(
+        token: &str,
+        service: &'static str,
+    ) -> impl Fn(Request<()>) -> Result<Request<()>, Status> + Clone + Send + Sync + 'static {
+        let expected = format!("Bearer {token}");
+        move |req: Request<()>| match req
+            .metadata()
+            .get("authorization")
+            .and_then(|v| v.to_str().ok())
+        {
+            Some(v) if constant_time_eq(v.as_bytes(), expected.as_bytes()) => Ok(req),
+            Some(_) => Err(Status::unauthenticated(format!(
+                "wrong bearer token: use the {service}'s --token / LIGHTFARM_TOKEN"
+            ))),
+            None => Err(Status::unauthenticated(
+                "missing bearer token: pass --token or set LIGHTFARM_TOKEN",
+            )),
+        }
+    }
+
+    /// Token comparison that does not stop at the first differing byte.
+    fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+        a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+    }
+}

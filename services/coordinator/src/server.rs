@@ -10,7 +10,6 @@ use lightfarm_proto::v1 as pb;
 use lightfarm_scene::Catalog;
 use lightfarm_store::{BlobStore, DiskBlobStore, SampleIndex, TieredBlobStore, DEFAULT_INLINE_MAX};
 use tonic::transport::Server;
-use tonic::{Request, Status};
 
 use crate::durability::GroupSync;
 use crate::error::CoordError;
@@ -152,22 +151,7 @@ impl Coordinator {
         listener: tokio::net::TcpListener,
         shutdown: impl Future<Output = ()> + Send + 'static,
     ) -> Result<(), CoordError> {
-        let expected = format!("Bearer {}", self.token);
-        let auth = move |req: Request<()>| -> Result<Request<()>, Status> {
-            match req
-                .metadata()
-                .get("authorization")
-                .and_then(|v| v.to_str().ok())
-            {
-                Some(v) if constant_time_eq(v.as_bytes(), expected.as_bytes()) => Ok(req),
-                Some(_) => Err(Status::unauthenticated(
-                    "wrong bearer token: use the coordinator's --token / LIGHTFARM_TOKEN",
-                )),
-                None => Err(Status::unauthenticated(
-                    "missing bearer token: pass --token or set LIGHTFARM_TOKEN",
-                )),
-            }
-        };
+        let auth = lightfarm_proto::auth::bearer(&self.token, "coordinator");
         let (sync_rx, db) = self.sync;
         let flusher = tokio::spawn(GroupSync::run(
             sync_rx,
@@ -221,9 +205,4 @@ impl Coordinator {
         let _ = db.flush();
         result
     }
-}
-
-/// Token comparison that does not stop at the first differing byte.
-fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }

@@ -20,7 +20,8 @@ pub struct Portrait {
     pub sample: Option<SampleImages>,
 }
 
-fn srgb_decode(v: f32) -> f32 {
+/// sRGB → linear.
+pub fn srgb_decode(v: f32) -> f32 {
     if v <= 0.040_45 {
         v / 12.92
     } else {
@@ -150,4 +151,18 @@ pub fn write_png(
     })?;
     img.save(path)
         .map_err(|e| TrainError::Input(format!("writing {}: {e}", path.display())))
+}
+
+/// Linear RGB as sRGB PNG bytes.
+pub fn png_bytes(width: usize, height: usize, rgb: &[[f32; 3]]) -> Result<Vec<u8>, TrainError> {
+    let data: Vec<u8> = rgb
+        .iter()
+        .flat_map(|p| p.map(|v| (srgb_encode(v) * 255.0 + 0.5) as u8))
+        .collect();
+    let img = image::RgbImage::from_raw(width as u32, height as u32, data)
+        .ok_or_else(|| TrainError::Input("image buffer of the wrong size".into()))?;
+    let mut out = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+        .map_err(|e| TrainError::Input(format!("encoding a PNG: {e}")))?;
+    Ok(out)
 }

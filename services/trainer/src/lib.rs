@@ -12,6 +12,7 @@ pub mod image_io;
 pub mod infer;
 pub mod lights;
 pub mod sample;
+pub mod service;
 pub mod train;
 
 use std::path::{Path, PathBuf};

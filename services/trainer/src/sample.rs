@@ -63,17 +63,18 @@ pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainErro
             .map(|i| [a[i], b[i], c[i]].map(|v| if v.is_finite() { v } else { 0.0 }))
             .collect())
     };
-    let text =
-        match layer
-            .attributes
-            .other
-            .get(&exr::prelude::Text::from(SAMPLE_ATTRIBUTE))
-        {
-            Some(AttributeValue::Text(t)) => t.to_string(),
-            _ => return Err(bad(format!(
+    let text = match layer
+        .attributes
+        .other
+        .get(&exr::prelude::Text::from(SAMPLE_ATTRIBUTE))
+    {
+        Some(AttributeValue::Text(t)) => t.to_string(),
+        _ => {
+            return Err(bad(format!(
                 "has no {SAMPLE_ATTRIBUTE} header attribute (not written by a lightfarm worker)"
-            ))),
-        };
+            )))
+        }
+    };
     let meta: serde_json::Value = serde_json::from_str(&text)
         .map_err(|e| bad(format!("{SAMPLE_ATTRIBUTE} is not JSON ({e})")))?;
     let spec: SampleSpec = serde_json::from_value(
