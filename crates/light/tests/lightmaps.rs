@@ -1,6 +1,9 @@
 //! Light-map prefiltering: constant environments, a single hot texel, SH against brute force,
 //! and the convolution window against the full sum.
 
+// Channel and SH-band loops index several parallel arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use std::path::Path;
 
 use lightfarm_light::{

@@ -4,6 +4,9 @@
 //! MAE/MSE/SSIM are computed on display values (sRGB-encoded, clamped to [0, 1]) over the whole
 //! image, background included, as the paper's tables compare images a viewer sees.
 
+// Channel and SH-band loops index several parallel arrays at once; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
 /// A planar image: `data[c * width * height + y * width + x]`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Planar {
@@ -129,7 +132,7 @@ pub fn fit_sh_irradiance(
                 }
                 let n = [normal.at(0, x, y), normal.at(1, x, y), normal.at(2, x, y)];
                 let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                if !(len > 0.5) {
+                if len.is_nan() || len <= 0.5 {
                     continue;
                 }
                 let basis = lightfarm_light::sh9_basis(n.map(|v| v / len)).map(f64::from);

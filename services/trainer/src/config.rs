@@ -130,7 +130,7 @@ impl TrainConfig {
             ((1..=100_000_000).contains(&self.steps), format!("steps = {} must be in 1..=100000000", self.steps)),
             ((1..=512).contains(&self.batch), format!("batch = {} must be in 1..=512", self.batch)),
             (
-                self.crop % multiple == 0 && self.crop <= 8192,
+                self.crop.is_multiple_of(multiple) && self.crop <= 8192,
                 format!("crop = {} must be 0 (whole images) or a multiple of {multiple} up to 8192 for {} UNet levels", self.crop, relight.widths.len()),
             ),
             (self.lr.is_finite() && self.lr > 0.0 && self.lr < 1.0, format!("lr = {} must be in (0, 1)", self.lr)),

@@ -207,7 +207,7 @@ pub fn train(
         writeln!(log, "{line}").map_err(|e| TrainError::io(&cfg.out.join(LOSS_FILE), e))?;
         observer.on_step(&entry);
         cancelled = cancel.load(Ordering::Relaxed);
-        if step % cfg.checkpoint_every == 0 || step == cfg.steps || cancelled {
+        if step.is_multiple_of(cfg.checkpoint_every) || step == cfg.steps || cancelled {
             log.flush()
                 .map_err(|e| TrainError::io(&cfg.out.join(LOSS_FILE), e))?;
             checkpoint =

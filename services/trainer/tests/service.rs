@@ -10,12 +10,8 @@ use tonic::service::interceptor::InterceptedService;
 use tonic::transport::Channel;
 use tonic::{Code, Request, Status};
 
-type Client = pb::trainer_client::TrainerClient<
-    InterceptedService<
-        Channel,
-        Box<dyn Fn(Request<()>) -> Result<Request<()>, Status> + Send + Sync>,
-    >,
->;
+type Auth = Box<dyn Fn(Request<()>) -> Result<Request<()>, Status> + Send + Sync>;
+type Client = pb::trainer_client::TrainerClient<InterceptedService<Channel, Auth>>;
 
 async fn client(addr: &str, token: &str) -> Client {
     let ch = Channel::from_shared(addr.to_owned())
@@ -24,11 +20,10 @@ async fn client(addr: &str, token: &str) -> Client {
         .await
         .unwrap();
     let value: MetadataValue<_> = format!("Bearer {token}").parse().unwrap();
-    let auth: Box<dyn Fn(Request<()>) -> Result<Request<()>, Status> + Send + Sync> =
-        Box::new(move |mut r: Request<()>| {
-            r.metadata_mut().insert("authorization", value.clone());
-            Ok(r)
-        });
+    let auth: Auth = Box::new(move |mut r: Request<()>| {
+        r.metadata_mut().insert("authorization", value.clone());
+        Ok(r)
+    });
     pb::trainer_client::TrainerClient::with_interceptor(ch, auth)
         .max_decoding_message_size(64 << 20)
 }
