@@ -27,6 +27,16 @@ pub struct TrainArgs {
     /// Override `device`: auto, cpu or gpu.
     #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE")]
     pub device: Option<String>,
+    /// Submit to a trainer service (`lightfarm serve trainer`) instead of training here, and
+    /// follow the job; `dataset` then names a folder export under the trainer's --datasets.
+    #[arg(long, env = "LIGHTFARM_TRAINER")]
+    pub trainer: Option<String>,
+    /// Dataset name on the trainer (overrides the config's `dataset`).
+    #[arg(long, requires = "trainer")]
+    pub dataset: Option<String>,
+    /// Bearer token of the trainer service.
+    #[arg(long, env = "LIGHTFARM_TOKEN", hide_env_values = true)]
+    pub token: Option<String>,
 }
 
 struct Bar(ProgressBar);
@@ -64,6 +74,9 @@ fn cancel_on_signal() -> Result<Arc<AtomicBool>> {
 }
 
 pub fn train(a: TrainArgs) -> Result<()> {
+    if let Some(url) = a.trainer.clone() {
+        return crate::farm_cmd::runtime()?.block_on(remote_train(url, a));
+    }
     let mut cfg = TrainConfig::load(&a.config)?;
     if let Some(s) = a.steps {
         cfg.steps = s;
@@ -95,6 +108,92 @@ pub fn train(a: TrainArgs) -> Result<()> {
         cfg.out.join(lightfarm_trainer::train::LOSS_FILE).display()
     );
     Ok(())
+}
+
+/// Submits the config to a trainer service and follows the job to its end.
+async fn remote_train(url: String, a: TrainArgs) -> Result<()> {
+    use lightfarm_proto::v1 as pb;
+    let text = std::fs::read_to_string(&a.config)
+        .with_context(|| format!("reading {}", a.config.display()))?;
+    let token = a
+        .token
+        .context("--token (or LIGHTFARM_TOKEN) is needed to reach a trainer service")?;
+    let (ch, auth) = lightfarm_worker::client::channel(&url, &token, None)?;
+    let mut client = pb::trainer_client::TrainerClient::with_interceptor(ch, auth);
+    let job = client
+        .submit_train_job(pb::SubmitTrainJobRequest {
+            config_toml: text,
+            dataset: a.dataset.unwrap_or_default(),
+            split: String::new(),
+            steps: a.steps.unwrap_or(0),
+            batch: 0,
+        })
+        .await
+        .map_err(|s| anyhow::anyhow!("--trainer {url}: {}", s.message()))?
+        .into_inner();
+    println!("{}", job.id);
+    let bar = ProgressBar::new(job.steps).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} steps  eta {eta}  {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut last = job;
+    let terminal = |state: i32| {
+        [
+            pb::TrainJobState::Completed,
+            pb::TrainJobState::Failed,
+            pb::TrainJobState::Cancelled,
+        ]
+        .iter()
+        .any(|s| *s as i32 == state)
+    };
+    // A restarting trainer resumes the job; follow it through the restart.
+    while !terminal(last.state) {
+        let watched = client
+            .watch_train_job(pb::TrainJobRef {
+                job_id: last.id.clone(),
+            })
+            .await;
+        let mut stream = match watched {
+            Ok(s) => s.into_inner(),
+            Err(s) if lightfarm_worker::client::transient(&s) => {
+                bar.set_message(format!("trainer unreachable ({}); retrying", s.message()));
+                tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+                continue;
+            }
+            Err(s) => bail!("watching {}: {}", last.id, s.message()),
+        };
+        loop {
+            match stream.message().await {
+                Ok(Some(p)) => {
+                    if let Some(l) = p.losses.last() {
+                        bar.set_message(format!(
+                            "loss {:.4} (relit {:.4}) {:.1} samples/s",
+                            l.total, l.relit, l.samples_per_second
+                        ));
+                    }
+                    if let Some(j) = p.job {
+                        bar.set_position(j.step);
+                        last = j;
+                    }
+                }
+                Ok(None) => break,
+                Err(s) if lightfarm_worker::client::transient(&s) => break,
+                Err(s) => bail!("watching {}: {}", last.id, s.message()),
+            }
+        }
+    }
+    bar.finish();
+    match pb::TrainJobState::try_from(last.state) {
+        Ok(pb::TrainJobState::Completed) => {
+            println!("{} completed at step {}", last.id, last.step);
+            Ok(())
+        }
+        Ok(pb::TrainJobState::Cancelled) => {
+            println!("{} cancelled at step {}", last.id, last.step);
+            Ok(())
+        }
+        _ => bail!("{} failed: {}", last.id, last.error),
+    }
 }
 
 #[derive(Args, Debug)]

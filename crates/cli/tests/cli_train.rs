@@ -401,6 +401,35 @@ fn the_trainer_service_resumes_a_job_after_sigkill() {
         );
         std::thread::sleep(Duration::from_millis(100));
     }
+    // `lightfarm train --trainer` submits a config (its `dataset` names an export under the
+    // trainer's --datasets) and follows the job to its end.
+    let cfg = tmp.path().join("remote.toml");
+    std::fs::write(
+        &cfg,
+        "dataset = \"dataset\"\nout = \"ignored\"\nsplit = \"all\"\nbatch = 2\ncrop = 16\nloader_threads = 1\n\
+         [net]\nwidths = [8, 16, 32]\ncritic_width = 8\n",
+    )
+    .expect("config");
+    let r = bin()
+        .args([
+            "train",
+            cfg.to_str().expect("utf8"),
+            "--steps",
+            "4",
+            "--trainer",
+            &format!("http://{listen}"),
+            "--token",
+            "t0k",
+        ])
+        .output()
+        .expect("remote train");
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(
+        String::from_utf8_lossy(&r.stdout).contains("completed at step 4"),
+        "{}",
+        String::from_utf8_lossy(&r.stdout)
+    );
+
     server.kill().expect("kill");
     let _ = server.wait();
     let steps: Vec<u64> = losses(&data.join("jobs").join(&job.id).join("run"))

@@ -40,7 +40,7 @@ pub fn optimizer() -> burn::optim::ModuleOptimizer {
 }
 
 /// Gives a module's parameters ids that depend only on their order in the module and on
-/// `namespace`. Burn keys optimizer state by parameter id and draws fresh random ids at init, so
+/// `namespace`, and initialises them. Burn keys optimizer state by parameter id and draws fresh random ids at init, so
 /// without this an Adam state saved by one process matches no parameter of the next.
 pub fn stable_param_ids<M: Module>(module: M, namespace: u32) -> M {
     struct Renumber {
@@ -49,6 +49,9 @@ pub fn stable_param_ids<M: Module>(module: M, namespace: u32) -> M {
     }
     impl ModuleMapper for Renumber {
         fn map_float<const D: usize>(&mut self, mut param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+            // Burn initialises parameters lazily, on first use; do it now, so the random draws
+            // happen where the caller seeded (and locked) the generator.
+            let _ = param.val();
             param.id = ParamId::from(self.base | self.next);
             self.next += 1;
             param

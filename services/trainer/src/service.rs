@@ -273,11 +273,25 @@ impl pb::trainer_server::Trainer for TrainerService {
         req: Request<pb::SubmitTrainJobRequest>,
     ) -> Result<Response<pb::TrainJob>, Status> {
         let r = req.into_inner();
-        let dataset = relative_dataset(&r.dataset)?;
-        // `dataset` and `out` are the service's to set; placeholders make the TOML parse.
-        let mut cfg: TrainConfig =
-            toml::from_str(&format!("dataset = \"-\"\nout = \"-\"\n{}", r.config_toml))
-                .map_err(|e| Status::invalid_argument(format!("config_toml: {e}")))?;
+        // `out` is the service's to set, and `dataset` is a name under its --datasets root:
+        // taken from the request, else from the config a user also trains with locally.
+        let mut table: toml::Table = toml::from_str(&r.config_toml)
+            .map_err(|e| Status::invalid_argument(format!("config_toml: {e}")))?;
+        let from_config = table
+            .remove("dataset")
+            .and_then(|v| v.as_str().map(str::to_owned));
+        table.remove("out");
+        let named = if r.dataset.is_empty() {
+            from_config.unwrap_or_default()
+        } else {
+            r.dataset.clone()
+        };
+        let dataset = relative_dataset(&named)?;
+        table.insert("dataset".into(), "-".into());
+        table.insert("out".into(), "-".into());
+        let mut cfg: TrainConfig = table
+            .try_into()
+            .map_err(|e: toml::de::Error| Status::invalid_argument(format!("config_toml: {e}")))?;
         if !r.split.is_empty() {
             cfg.split = r.split;
         }

@@ -93,6 +93,10 @@ pub fn train(
     let base = lightfarm_nets::device::select(&cfg.device)
         .map_err(|e| TrainError::Config(e.to_string()))?;
     let device = base.autodiff();
+    // Burn's seed is process-wide: two runs initialising at once (trainer service, tests) would
+    // interleave their draws, and a resumed run would no longer match its first start.
+    static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let init_guard = INIT.lock().unwrap_or_else(|p| p.into_inner());
     device.seed(cfg.seed);
 
     let model = cfg
@@ -107,6 +111,7 @@ pub fn train(
             .init(&device),
         2,
     );
+    drop(init_guard);
     let mut optim = lightfarm_nets::optimizer();
     let mut critic_optim = lightfarm_nets::optimizer();
     let mut start = 0u64;
