@@ -48,41 +48,18 @@ fn spec(a: &DemoArgs) -> String {
     )
 }
 
-/// The passes of a sample EXR written by a worker.
+/// The passes of a sample EXR written by a worker, as the contact sheet draws them.
 fn output_from_exr(bytes: &[u8]) -> Result<RenderOutput> {
-    use exr::prelude::{ReadChannels, ReadLayers};
-    let img = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(std::io::Cursor::new(bytes))
-        .context("decoding a sample EXR")?;
-    let layer = &img.layer_data;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    let channel = |name: &str| -> Result<Vec<f32>> {
-        let c = layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == name)
-            .with_context(|| format!("sample EXR has no channel {name}"))?;
-        Ok(c.sample_data.values_as_f32().collect())
-    };
-    let rgb = |base: &str, names: [&str; 3]| -> Result<Vec<[f32; 3]>> {
-        let [a, b, c] = names.map(|n| channel(&format!("{base}.{n}")));
-        let (a, b, c) = (a?, b?, c?);
-        Ok((0..w * h).map(|i| [a[i], b[i], c[i]]).collect())
-    };
+    let s = lightfarm_trainer::sample::decode_sample(bytes, "demo sample")?;
+    let (w, h) = (s.width, s.height);
     Ok(RenderOutput {
         width: w as u32,
         height: h as u32,
-        lit: vec![rgb("lit0", ["R", "G", "B"])?, rgb("lit1", ["R", "G", "B"])?],
-        albedo: rgb("albedo", ["R", "G", "B"])?,
-        normal: rgb("normal", ["X", "Y", "Z"])?,
-        normal_lens: rgb("normal_lens", ["X", "Y", "Z"])?,
-        mask: channel("mask.A")?,
+        lit: Vec::from(s.lit),
+        albedo: s.albedo,
+        normal: s.normal,
+        normal_lens: s.normal_lens,
+        mask: s.mask,
         stats: RenderStats {
             seconds: 0.0,
             samples: 0,

@@ -10,7 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lightfarm_trainer::config::TrainConfig;
 use lightfarm_trainer::eval::{evaluate, table};
 use lightfarm_trainer::image_io::{load_portrait, write_png};
-use lightfarm_trainer::infer::{light_balls, load_model, resolve_model_dir};
+use lightfarm_trainer::infer::{load_model, normal_colours, resolve_model_dir};
 use lightfarm_trainer::lights::{camera_to_env, identity_camera, Lighting};
 use lightfarm_trainer::train::RUN_FILE;
 use lightfarm_trainer::{Observer, StepLog};
@@ -257,26 +257,12 @@ pub fn relight(a: RelightArgs) -> Result<()> {
     let (w, h) = (portrait.width, portrait.height);
     let r = model.relight(&portrait.rgb, &portrait.mask, w, h, &lighting, rot)?;
 
-    let mut composed = r.relit.clone();
-    let ball = (h.min(w) / 5).max(8);
-    if 2 * ball <= w && ball <= h {
-        let balls = light_balls(&lighting, rot, ball);
-        for y in 0..ball {
-            for x in 0..2 * ball {
-                composed[(h - ball + y) * w + (w - 2 * ball + x)] = balls[y * 2 * ball + x];
-            }
-        }
-    }
+    let composed = r.with_inset(&lighting, rot);
     write_png(&a.out, w, h, &composed)?;
     let stem = a.out.with_extension("");
     let side = |name: &str| PathBuf::from(format!("{}_{name}.png", stem.display()));
-    let vis = |n: &[[f32; 3]]| -> Vec<[f32; 3]> {
-        n.iter()
-            .map(|v| v.map(|c| srgb_linear(c * 0.5 + 0.5)))
-            .collect()
-    };
-    write_png(&side("normal"), w, h, &vis(&r.normal))?;
-    write_png(&side("normal_lens"), w, h, &vis(&r.normal_lens))?;
+    write_png(&side("normal"), w, h, &normal_colours(&r.normal))?;
+    write_png(&side("normal_lens"), w, h, &normal_colours(&r.normal_lens))?;
     write_png(&side("albedo"), w, h, &r.albedo)?;
     write_png(&side("diffuse"), w, h, &r.diffuse)?;
     write_png(&side("specular"), w, h, &r.specular)?;
@@ -286,16 +272,6 @@ pub fn relight(a: RelightArgs) -> Result<()> {
         model.dir.display()
     );
     Ok(())
-}
-
-/// Inverse sRGB, so a [0,1] visualisation (normals) lands in the PNG unchanged.
-fn srgb_linear(v: f32) -> f32 {
-    let v = v.clamp(0.0, 1.0);
-    if v <= 0.040_45 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
 }
 
 #[derive(Args, Debug)]

@@ -139,18 +139,8 @@ pub fn write_png(
     height: usize,
     rgb: &[[f32; 3]],
 ) -> Result<(), TrainError> {
-    let data: Vec<u8> = rgb
-        .iter()
-        .flat_map(|p| p.map(|v| (srgb_encode(v) * 255.0 + 0.5) as u8))
-        .collect();
-    let img = image::RgbImage::from_raw(width as u32, height as u32, data).ok_or_else(|| {
-        TrainError::Input(format!(
-            "{}: image buffer of the wrong size",
-            path.display()
-        ))
-    })?;
-    img.save(path)
-        .map_err(|e| TrainError::Input(format!("writing {}: {e}", path.display())))
+    let bytes = png_bytes(width, height, rgb)?;
+    std::fs::write(path, bytes).map_err(|e| TrainError::io(path, e))
 }
 
 /// Linear RGB as sRGB PNG bytes.

@@ -77,6 +77,33 @@ pub struct Relighting {
     pub specular: Vec<[f32; 3]>,
 }
 
+impl Relighting {
+    /// The relit image with the paper's inset (diffuse and mirror ball under the target
+    /// lighting) at the bottom right, when the image is large enough to hold it.
+    pub fn with_inset(&self, lighting: &Lighting, camera_to_env: [[f32; 3]; 3]) -> Vec<[f32; 3]> {
+        let (w, h) = (self.width, self.height);
+        let mut out = self.relit.clone();
+        let ball = (h.min(w) / 5).max(8);
+        if 2 * ball <= w && ball <= h {
+            let balls = light_balls(lighting, camera_to_env, ball);
+            for y in 0..ball {
+                for x in 0..2 * ball {
+                    out[(h - ball + y) * w + (w - 2 * ball + x)] = balls[y * 2 * ball + x];
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Normals as colours, (n + 1)/2, linearised so an sRGB PNG shows exactly those values.
+pub fn normal_colours(normals: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    normals
+        .iter()
+        .map(|v| v.map(|c| crate::image_io::srgb_decode((c * 0.5 + 0.5).clamp(0.0, 1.0))))
+        .collect()
+}
+
 impl Model {
     /// Relights `rgb` (linear, masked) under `lighting`; `camera_to_env` orients the light maps.
     /// The output is in the trainer's units: the HDRI scaled to mean luminance 1.

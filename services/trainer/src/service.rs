@@ -17,7 +17,7 @@ use tonic::{Request, Response, Status};
 
 use crate::config::TrainConfig;
 use crate::image_io::{load_portrait, png_bytes};
-use crate::infer::{light_balls, load_model};
+use crate::infer::{load_model, normal_colours};
 use crate::lights::{identity_camera, Lighting};
 use crate::train::{latest_checkpoint, read_losses, write_atomic, CHECKPOINTS, LATEST};
 use crate::{Observer, StepLog, TrainError};
@@ -516,27 +516,13 @@ impl TrainerService {
         let out = model
             .relight(&p.rgb, &p.mask, w, h, &lighting, rot)
             .map_err(internal)?;
-        let mut relit = out.relit.clone();
-        let ball = (h.min(w) / 5).max(8);
-        if 2 * ball <= w && ball <= h {
-            let balls = light_balls(&lighting, rot, ball);
-            for y in 0..ball {
-                for x in 0..2 * ball {
-                    relit[(h - ball + y) * w + (w - 2 * ball + x)] = balls[y * 2 * ball + x];
-                }
-            }
-        }
-        let vis = |n: &[[f32; 3]]| -> Vec<[f32; 3]> {
-            n.iter()
-                .map(|v| v.map(|c| crate::image_io::srgb_decode(c * 0.5 + 0.5)))
-                .collect()
-        };
+        let relit = out.with_inset(&lighting, rot);
         let png = |rgb: &[[f32; 3]]| png_bytes(w, h, rgb).map_err(internal);
         Ok(pb::RelightResponse {
             width: w as u32,
             height: h as u32,
             relit_png: png(&relit)?,
-            normal_png: png(&vis(&out.normal))?,
+            normal_png: png(&normal_colours(&out.normal))?,
             albedo_png: png(&out.albedo)?,
             diffuse_png: png(&out.diffuse)?,
             specular_png: png(&out.specular)?,
