@@ -1,13 +1,11 @@
 //! Portrait images in and out of `relight`: PNG/JPEG (sRGB) or OpenEXR (linear), an optional
 //! mask, and display PNGs.
 
-use std::io::Cursor;
 use std::path::Path;
 
-use exr::prelude::{ReadChannels, ReadLayers};
 use lightfarm_nets::metrics::srgb_encode;
 
-use crate::sample::{decode_sample, SampleImages};
+use crate::sample::{decode_sample, read_first_layer, SampleImages};
 use crate::TrainError;
 
 /// An input portrait in linear RGB with its foreground mask.
@@ -100,14 +98,7 @@ pub fn load_portrait(path: &Path, mask: Option<&Path>) -> Result<Portrait, Train
 }
 
 fn load_plain_exr(bytes: &[u8]) -> Result<Portrait, String> {
-    let img = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(Cursor::new(bytes))
-        .map_err(|e| format!("not a readable OpenEXR file ({e})"))?;
+    let img = read_first_layer(bytes)?;
     let layer = &img.layer_data;
     let (w, h) = (layer.size.width(), layer.size.height());
     let find = |n: &str| {

@@ -24,12 +24,13 @@ pub struct SampleImages {
     pub spec: SampleSpec,
 }
 
-/// Decodes a sample EXR; `name` (a path or sample id) is what errors mention.
-pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainError> {
-    let bad = |reason: String| TrainError::Sample {
-        name: name.to_owned(),
-        reason,
-    };
+/// The first layer of an OpenEXR file, every channel and attribute (samples and portraits).
+pub(crate) fn read_first_layer(
+    bytes: &[u8],
+) -> Result<
+    exr::prelude::Image<exr::prelude::Layer<exr::prelude::AnyChannels<exr::prelude::FlatSamples>>>,
+    String,
+> {
     let img = exr::prelude::read()
         .no_deep_data()
         .largest_resolution_level()
@@ -37,7 +38,17 @@ pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainErro
         .first_valid_layer()
         .all_attributes()
         .from_buffered(Cursor::new(bytes))
-        .map_err(|e| bad(format!("not a readable OpenEXR file ({e})")))?;
+        .map_err(|e| format!("not a readable OpenEXR file ({e})"))?;
+    Ok(img)
+}
+
+/// Decodes a sample EXR; `name` (a path or sample id) is what errors mention.
+pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainError> {
+    let bad = |reason: String| TrainError::Sample {
+        name: name.to_owned(),
+        reason,
+    };
+    let img = read_first_layer(bytes).map_err(bad)?;
     let layer = &img.layer_data;
     let (width, height) = (layer.size.width(), layer.size.height());
     let channel = |n: &str| -> Result<Vec<f32>, TrainError> {
