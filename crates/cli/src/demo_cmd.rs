@@ -155,18 +155,36 @@ async fn demo(a: &DemoArgs) -> Result<()> {
         .await?
         .into_inner();
     let mut last = None;
-    while let Some(j) = watch.message().await? {
-        let c = j.counts.unwrap_or_default();
-        bar.set_position(c.done + c.failed);
-        bar.set_message(format!("{:.2} samples/s", j.samples_per_second));
-        last = Some(j);
-        if worker.is_finished() {
-            break;
+    let mut worker = worker;
+    let mut worker_result = None;
+    // A worker that fails (no usable device, say) ends before the job does: stop waiting for
+    // progress then, and report why.
+    loop {
+        tokio::select! {
+            msg = watch.message() => match msg? {
+                Some(j) => {
+                    let c = j.counts.unwrap_or_default();
+                    bar.set_position(c.done + c.failed);
+                    bar.set_message(format!("{:.2} samples/s", j.samples_per_second));
+                    last = Some(j);
+                }
+                None => break,
+            },
+            r = &mut worker => {
+                worker_result = Some(r);
+                break;
+            }
         }
     }
     bar.finish_and_clear();
     let _ = stop_tx.send(true);
-    worker.await.context("worker task")??;
+    let worker_result = match worker_result {
+        Some(r) => r,
+        None => worker.await,
+    };
+    worker_result
+        .context("worker task")?
+        .context("the demo's render worker stopped")?;
     let last = last.context("no progress from the coordinator")?;
     if last.state != pb::JobState::Completed as i32 {
         for f in &last.failures {
@@ -339,5 +357,6 @@ fn train_and_relight(a: &DemoArgs) -> Result<()> {
         json: Some(a.out.join("eval.json")),
         device: a.train_device.clone(),
         assets: None,
+        lpips: None,
     })
 }

@@ -62,6 +62,8 @@ enum Command {
     /// Train the relighting network on a folder export (resumes from the run's newest
     /// checkpoint; Ctrl-C stops after a checkpoint).
     Train(train_cmd::TrainArgs),
+    /// List the training jobs of a trainer service (`lightfarm serve trainer`).
+    TrainJobs(train_cmd::TrainJobsArgs),
     /// Relight a portrait with a trained model under an HDRI.
     Relight(Box<train_cmd::RelightArgs>),
     /// Score models on a split (MAE, MSE, SSIM, SH lighting recovery), one row each.
@@ -95,6 +97,7 @@ fn main() {
         Command::Samples(a) => farm_cmd::samples(a),
         Command::Export(a) => farm_cmd::export(a),
         Command::Train(a) => train_cmd::train(a),
+        Command::TrainJobs(a) => train_cmd::train_jobs(a),
         Command::Relight(a) => train_cmd::relight(*a),
         Command::Eval(a) => train_cmd::eval(a),
     };

@@ -197,6 +197,59 @@ async fn remote_train(url: String, a: TrainArgs) -> Result<()> {
 }
 
 #[derive(Args, Debug)]
+pub struct TrainJobsArgs {
+    /// The trainer service.
+    #[arg(
+        long,
+        env = "LIGHTFARM_TRAINER",
+        default_value = "http://127.0.0.1:7071"
+    )]
+    pub trainer: String,
+    /// Bearer token of the trainer service.
+    #[arg(long, env = "LIGHTFARM_TOKEN", hide_env_values = true)]
+    pub token: Option<String>,
+}
+
+/// One line per job: id, state, step/steps, dataset, error.
+pub fn train_jobs(a: TrainJobsArgs) -> Result<()> {
+    use lightfarm_proto::v1 as pb;
+    crate::farm_cmd::runtime()?.block_on(async {
+        let token = a
+            .token
+            .context("--token (or LIGHTFARM_TOKEN) is needed to reach a trainer service")?;
+        let (ch, auth) = lightfarm_worker::client::channel(&a.trainer, &token, None)?;
+        let mut client = pb::trainer_client::TrainerClient::with_interceptor(ch, auth);
+        let jobs = client
+            .list_train_jobs(pb::ListTrainJobsRequest {})
+            .await
+            .map_err(|s| anyhow::anyhow!("--trainer {}: {}", a.trainer, s.message()))?
+            .into_inner()
+            .jobs;
+        println!("{:<28} {:<10} {:>15}  dataset", "job", "state", "step");
+        for j in jobs {
+            let state = pb::TrainJobState::try_from(j.state)
+                .map(|s| {
+                    s.as_str_name()
+                        .trim_start_matches("TRAIN_JOB_STATE_")
+                        .to_lowercase()
+                })
+                .unwrap_or_else(|_| format!("state {}", j.state));
+            let step = format!("{}/{}", j.step, j.steps);
+            let error = if j.error.is_empty() {
+                String::new()
+            } else {
+                format!("  error: {}", j.error)
+            };
+            println!(
+                "{:<28} {:<10} {:>15}  {}{error}",
+                j.id, state, step, j.dataset
+            );
+        }
+        Ok(())
+    })
+}
+
+#[derive(Args, Debug)]
 pub struct RelightArgs {
     /// A run directory (newest checkpoint), a checkpoint directory or its model.safetensors.
     #[arg(long)]
@@ -292,6 +345,10 @@ pub struct EvalArgs {
     pub device: String,
     #[arg(long)]
     pub assets: Option<PathBuf>,
+    /// LPIPS (VGG) weights as safetensors: torchvision's VGG16 `features.*` plus the lpips
+    /// package's `lin0..4`; adds an LPIPS column (README: "LPIPS and the perceptual loss").
+    #[arg(long)]
+    pub lpips: Option<PathBuf>,
 }
 
 /// The run a model came from (run.json two levels above its checkpoint), for its dataset.
@@ -317,10 +374,18 @@ pub fn eval(a: EvalArgs) -> Result<()> {
         ProgressStyle::with_template("{bar:30} {pos}/{len} samples  eta {eta}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let rows = evaluate(&a.model, &dataset, &a.split, catalog, &a.device, |i, n| {
-        bar.set_length(n as u64);
-        bar.set_position(i as u64);
-    })?;
+    let rows = evaluate(
+        &a.model,
+        &dataset,
+        &a.split,
+        catalog,
+        &a.device,
+        a.lpips.as_deref(),
+        |i, n| {
+            bar.set_length(n as u64);
+            bar.set_position(i as u64);
+        },
+    )?;
     bar.finish_and_clear();
     print!("{}", table(&rows));
     if let Some(path) = &a.json {

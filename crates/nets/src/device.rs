@@ -5,13 +5,15 @@ use burn::prelude::*;
 use crate::NetsError;
 
 /// `cpu` (Burn's pure-Rust flex backend), `gpu` (wgpu; needs the `gpu` feature) or `auto`
-/// (gpu when compiled in, else cpu). Training wraps the result in `.autodiff()`.
+/// (gpu when compiled in and a hardware GPU is present, else cpu: on a CPU-only machine wgpu
+/// would fall back to lavapipe, several times slower than flex). Training wraps the result in
+/// `.autodiff()`.
 pub fn select(name: &str) -> Result<Device, NetsError> {
     match name.trim().to_ascii_lowercase().as_str() {
         "cpu" | "flex" => Ok(Device::flex()),
         "gpu" | "wgpu" => gpu(),
         "auto" | "" => {
-            if cfg!(feature = "gpu") {
+            if hardware_gpu() {
                 gpu()
             } else {
                 Ok(Device::flex())
@@ -26,6 +28,33 @@ pub fn select(name: &str) -> Result<Device, NetsError> {
 #[cfg(feature = "gpu")]
 fn gpu() -> Result<Device, NetsError> {
     Ok(Device::wgpu(DeviceKind::DefaultDevice))
+}
+
+/// Whether wgpu sees a discrete, integrated or virtual GPU (not a software rasteriser).
+#[cfg(feature = "gpu")]
+pub fn hardware_gpu() -> bool {
+    use std::future::Future;
+    use std::task::{Context, Poll, Waker};
+    let instance = wgpu::Instance::default();
+    let adapters = std::pin::pin!(instance.enumerate_adapters(wgpu::Backends::all()));
+    // Native enumeration is synchronous behind the future; one poll finishes it.
+    match adapters.poll(&mut Context::from_waker(Waker::noop())) {
+        Poll::Ready(list) => list.iter().any(|a| {
+            matches!(
+                a.get_info().device_type,
+                wgpu::DeviceType::DiscreteGpu
+                    | wgpu::DeviceType::IntegratedGpu
+                    | wgpu::DeviceType::VirtualGpu
+            )
+        }),
+        Poll::Pending => false,
+    }
+}
+
+/// Whether wgpu sees a hardware GPU: never without the `gpu` feature.
+#[cfg(not(feature = "gpu"))]
+pub fn hardware_gpu() -> bool {
+    false
 }
 
 #[cfg(not(feature = "gpu"))]

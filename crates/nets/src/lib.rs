@@ -1,5 +1,6 @@
 //! The relighting networks of Yeh et al. 2022 on Burn 0.22: UNets for f_N, f_A, f_S, f_R,
-//! device-side light maps, the losses of section 4.2, evaluation metrics, and safetensors I/O.
+//! device-side light maps, the losses of section 4.2 (with the perceptual loss when the user
+//! supplies VGG16 weights), evaluation metrics (LPIPS likewise), and safetensors I/O.
 //!
 //! Tensors are NCHW f32. Networks are backend-agnostic: [`device::select`] picks Burn's flex
 //! CPU backend or wgpu.
@@ -10,6 +11,7 @@ pub mod loss;
 pub mod metrics;
 pub mod relight;
 pub mod unet;
+pub mod vgg;
 
 use std::path::{Path, PathBuf};
 
@@ -20,6 +22,7 @@ use burn::store::{ModuleSnapshot, SafetensorsStore};
 pub use lightmap::{LightBatch, LightInput};
 pub use loss::{critic_loss, generator_loss, LossWeights, PatchGan, PatchGanConfig, Targets};
 pub use relight::{RelightConfig, RelightNet, Relit, RenderNet};
+pub use vgg::{perceptual_loss, Lpips, Vgg16};
 
 #[derive(Debug, thiserror::Error)]
 pub enum NetsError {

@@ -1,6 +1,6 @@
-//! Losses of section 4.2: L1 on N, N_l, A and the relit image (in log(1 + x)), ‖δR‖₁, and a PatchGAN
-//! (least-squares) adversarial loss on R. The perceptual loss is not here: it needs VGG
-//! weights the user supplies, and none ship with the project.
+//! Losses of section 4.2: L1 on N, N_l, A and the relit image (in log(1 + x)), ‖δR‖₁, a PatchGAN
+//! (least-squares) adversarial loss on R, and the perceptual (VGG) loss on R when the user
+//! supplies VGG16 weights ([`crate::vgg`]; none ship with the project).
 
 use burn::nn::conv::{Conv2d, Conv2dConfig};
 use burn::nn::PaddingConfig2d;
@@ -9,6 +9,7 @@ use burn::tensor::activation::leaky_relu;
 use serde::{Deserialize, Serialize};
 
 use crate::relight::Relit;
+use crate::vgg::{perceptual_loss, Vgg16};
 
 /// Loss weights. The paper does not list them; these follow Total Relighting's balance (all
 /// reconstruction terms equal, a small adversarial term) with δR regularised at a tenth.
@@ -21,6 +22,8 @@ pub struct LossWeights {
     pub relit: f64,
     pub residual: f64,
     pub adversarial: f64,
+    /// Weight of the VGG perceptual loss; used only when VGG weights are given.
+    pub perceptual: f64,
 }
 
 impl Default for LossWeights {
@@ -32,6 +35,7 @@ impl Default for LossWeights {
             relit: 1.0,
             residual: 0.1,
             adversarial: 0.01,
+            perceptual: 1.0,
         }
     }
 }
@@ -56,6 +60,7 @@ pub struct GeneratorLoss {
     pub relit: Tensor<1>,
     pub residual: Option<Tensor<1>>,
     pub adversarial: Option<Tensor<1>>,
+    pub perceptual: Option<Tensor<1>>,
 }
 
 /// sign(x)·log(1 + |x|).
@@ -76,6 +81,7 @@ pub fn generator_loss(
     t: &Targets,
     w: &LossWeights,
     critic: Option<&PatchGan>,
+    vgg: Option<&Vgg16>,
 ) -> GeneratorLoss {
     let normal = masked_l1(out.normal.clone(), t.normal.clone(), t.mask.clone());
     let normal_lens = masked_l1(
@@ -113,6 +119,12 @@ pub fn generator_loss(
     if let Some(a) = &adversarial {
         total = total + a.clone().mul_scalar(w.adversarial);
     }
+    let perceptual = vgg
+        .filter(|_| w.perceptual > 0.0)
+        .map(|v| perceptual_loss(v, out.relit.clone(), t.relit.clone(), t.mask.clone()));
+    if let Some(p) = &perceptual {
+        total = total + p.clone().mul_scalar(w.perceptual);
+    }
     GeneratorLoss {
         total,
         normal,
@@ -121,6 +133,7 @@ pub fn generator_loss(
         relit,
         residual,
         adversarial,
+        perceptual,
     }
 }
 

@@ -137,7 +137,7 @@ fn main() {
     for i in 0..warmup + iters {
         let t0 = Instant::now();
         let out = model.forward(input.clone(), targets.mask.clone(), &light);
-        let loss = generator_loss(&out, &targets, &weights, Some(&critic));
+        let loss = generator_loss(&out, &targets, &weights, Some(&critic), None);
         let _ = loss.total.clone().into_scalar::<f32>();
         let grads = GradientsParams::from_grads(loss.total.backward(), &model);
         model = optim.step(1e-4, model, grads);

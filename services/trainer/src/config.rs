@@ -47,6 +47,10 @@ pub struct TrainConfig {
     pub net: NetConfig,
     #[serde(default)]
     pub loss: LossWeights,
+    /// VGG16 weights (safetensors, torchvision layout) for the perceptual loss, weighted by
+    /// `loss.perceptual`; without them the loss is off. Relative to the config file.
+    #[serde(default)]
+    pub vgg_weights: Option<PathBuf>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -117,6 +121,7 @@ impl TrainConfig {
         cfg.dataset = base.join(&cfg.dataset);
         cfg.out = base.join(&cfg.out);
         cfg.assets = cfg.assets.map(|a| base.join(a));
+        cfg.vgg_weights = cfg.vgg_weights.map(|v| base.join(v));
         cfg.validate()
             .map_err(|e| TrainError::Config(format!("{}: {e}", path.display())))?;
         Ok(cfg)
@@ -139,7 +144,7 @@ impl TrainConfig {
             ((1..=64).contains(&self.loader_threads), format!("loader_threads = {} must be in 1..=64", self.loader_threads)),
             ((1..=4096).contains(&self.net.critic_width), format!("net.critic_width = {} must be in 1..=4096", self.net.critic_width)),
             (
-                [self.loss.normal, self.loss.normal_lens, self.loss.albedo, self.loss.relit, self.loss.residual, self.loss.adversarial]
+                [self.loss.normal, self.loss.normal_lens, self.loss.albedo, self.loss.relit, self.loss.residual, self.loss.adversarial, self.loss.perceptual]
                     .iter()
                     .all(|w| w.is_finite() && *w >= 0.0),
                 "loss weights must be finite and non-negative".into(),

@@ -1,11 +1,14 @@
 //! `lightfarm eval`: relight every sample of a split (lit0 → lighting 1) and score the result
 //! against the render (MAE, MSE, SSIM on display values) plus the SH lighting-recovery error of
-//! section 5.2. A first row scores the unrelit input, the floor any model must beat.
+//! section 5.2, and LPIPS when the user supplies its weights. A first row scores the unrelit
+//! input, the floor any model must beat.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use burn::prelude::*;
 use lightfarm_nets::metrics::{fit_sh_irradiance, mae, mse, sphere_error, ssim, Planar};
+use lightfarm_nets::Lpips;
 use lightfarm_scene::Catalog;
 use serde::Serialize;
 
@@ -25,6 +28,43 @@ pub struct EvalRow {
     /// Mean relative L1 of diffuse spheres lit by the recovered vs the true SH lighting; None
     /// for the input row (it predicts no albedo or normals).
     pub sh_error: Option<f64>,
+    /// LPIPS (VGG) on display values; None without `--lpips` weights.
+    pub lpips: Option<f64>,
+}
+
+/// LPIPS weights loaded on a device, scoring display images.
+struct LpipsScorer {
+    net: Lpips,
+    device: Device,
+}
+
+impl LpipsScorer {
+    fn load(path: &Path, device: &str) -> Result<Self, TrainError> {
+        let device = lightfarm_nets::device::select(device)
+            .map_err(|e| TrainError::Config(e.to_string()))?;
+        let net =
+            Lpips::load(path, &device).map_err(|e| TrainError::Config(format!("--lpips: {e}")))?;
+        Ok(LpipsScorer { net, device })
+    }
+
+    fn score(&self, a: &Planar, b: &Planar) -> Result<f64, TrainError> {
+        // VGG halves the image four times before its last tap.
+        if a.width < 16 || a.height < 16 {
+            return Err(TrainError::Config(format!(
+                "LPIPS needs images of at least 16×16 px; these are {}×{}",
+                a.width, a.height
+            )));
+        }
+        let t = |p: &Planar| {
+            Tensor::<4>::from_data(
+                TensorData::new(p.data.clone(), [1, p.channels, p.height, p.width]),
+                &self.device,
+            )
+        };
+        Ok(f64::from(
+            self.net.distance(t(a), t(b)).into_scalar::<f32>(),
+        ))
+    }
 }
 
 fn planar(rgb: &[[f32; 3]], width: usize, height: usize) -> Planar {
@@ -53,6 +93,7 @@ pub fn evaluate(
     split: &str,
     catalog: Catalog,
     device: &str,
+    lpips: Option<&Path>,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Vec<EvalRow>, TrainError> {
     let data = Dataset::open(dataset, split)?;
@@ -61,7 +102,8 @@ pub fn evaluate(
         .iter()
         .map(|m| load_model(m, device))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut sums = vec![[0f64; 4]; loaded.len() + 1];
+    let lpips = lpips.map(|p| LpipsScorer::load(p, device)).transpose()?;
+    let mut sums = vec![[0f64; 5]; loaded.len() + 1];
     let mut sh_counts = vec![0usize; loaded.len() + 1];
     for i in 0..data.len() {
         progress(i, data.len());
@@ -80,6 +122,9 @@ pub fn evaluate(
         sums[0][0] += mae(&input, &target);
         sums[0][1] += mse(&input, &target);
         sums[0][2] += ssim(&input, &target);
+        if let Some(l) = &lpips {
+            sums[0][4] += l.score(&input, &target)?;
+        }
         let rot = camera_to_env(s.spec.camera.camera_to_world(), &s.spec.lighting[1], false);
         for (k, model) in loaded.iter().enumerate() {
             let r = model.relight(&s.lit[0], &s.mask, w, h, &l1, rot)?;
@@ -88,6 +133,9 @@ pub fn evaluate(
             row[0] += mae(&pred, &target);
             row[1] += mse(&pred, &target);
             row[2] += ssim(&pred, &target);
+            if let Some(l) = &lpips {
+                row[4] += l.score(&pred, &target)?;
+            }
             let fit = fit_sh_irradiance(
                 &planar(&r.relit, w, h),
                 &planar(&r.albedo, w, h),
@@ -114,6 +162,7 @@ pub fn evaluate(
         mse: sums[0][1] / n,
         ssim: sums[0][2] / n,
         sh_error: None,
+        lpips: lpips.as_ref().map(|_| sums[0][4] / n),
     }];
     for (k, model) in loaded.iter().enumerate() {
         let s = &sums[k + 1];
@@ -128,6 +177,7 @@ pub fn evaluate(
             mse: s[1] / n,
             ssim: s[2] / n,
             sh_error: (sh_counts[k + 1] > 0).then(|| s[3] / sh_counts[k + 1] as f64),
+            lpips: lpips.as_ref().map(|_| s[4] / n),
         });
     }
     Ok(rows)
@@ -135,9 +185,17 @@ pub fn evaluate(
 
 /// The rows as an aligned text table.
 pub fn table(rows: &[EvalRow]) -> String {
+    let with_lpips = rows.iter().any(|r| r.lpips.is_some());
     let mut out = format!(
-        "{:<40} {:>11} {:>8} {:>8} {:>8} {:>8} {:>9}\n",
-        "model", "render net", "samples", "MAE", "MSE", "SSIM", "SH error"
+        "{:<40} {:>11} {:>8} {:>8} {:>8} {:>8} {:>9}{}\n",
+        "model",
+        "render net",
+        "samples",
+        "MAE",
+        "MSE",
+        "SSIM",
+        "SH error",
+        if with_lpips { "    LPIPS" } else { "" }
     );
     for r in rows {
         let chars: Vec<char> = r.model.chars().collect();
@@ -147,14 +205,15 @@ pub fn table(rows: &[EvalRow]) -> String {
             r.model.clone()
         };
         out.push_str(&format!(
-            "{:<40} {:>11} {:>8} {:>8.4} {:>8.4} {:>8.4} {:>9}\n",
+            "{:<40} {:>11} {:>8} {:>8.4} {:>8.4} {:>8.4} {:>9}{}\n",
             name,
             r.render_net,
             r.samples,
             r.mae,
             r.mse,
             r.ssim,
-            r.sh_error.map_or("-".to_owned(), |e| format!("{e:.4}"))
+            r.sh_error.map_or("-".to_owned(), |e| format!("{e:.4}")),
+            r.lpips.map_or(String::new(), |l| format!(" {l:>8.4}"))
         ));
     }
     out

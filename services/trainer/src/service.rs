@@ -212,6 +212,7 @@ impl TrainerService {
         cfg.dataset = self.0.cfg.datasets.join(&record.dataset);
         cfg.out = self.job_dir(&record.id).join(RUN_DIR);
         cfg.device = self.0.cfg.device.clone();
+        cfg.vgg_weights = cfg.vgg_weights.map(|v| self.0.cfg.datasets.join(v));
         cfg.validate().map_err(TrainError::Config)?;
         Ok(cfg)
     }
@@ -248,11 +249,16 @@ fn loss_point(l: &StepLog) -> pb::LossPoint {
         adversarial: l.adversarial.unwrap_or(0.0),
         critic: l.critic.unwrap_or(0.0),
         samples_per_second: l.samples_per_second,
+        perceptual: l.perceptual.unwrap_or(0.0),
     }
 }
 
-/// A dataset path must stay inside the datasets root.
+/// A dataset (or weights) path must stay inside the datasets root.
 fn relative_dataset(path: &str) -> Result<PathBuf, Status> {
+    under_datasets("dataset", "a folder export's", path)
+}
+
+fn under_datasets(key: &str, what: &str, path: &str) -> Result<PathBuf, Status> {
     let p = Path::new(path);
     if path.is_empty()
         || p.is_absolute()
@@ -260,7 +266,7 @@ fn relative_dataset(path: &str) -> Result<PathBuf, Status> {
             .any(|c| !matches!(c, std::path::Component::Normal(_)))
     {
         return Err(Status::invalid_argument(format!(
-            "dataset '{path}': give a folder export's path relative to the trainer's --datasets directory"
+            "{key} '{path}': give {what} path relative to the trainer's --datasets directory"
         )));
     }
     Ok(p.to_owned())
@@ -303,6 +309,15 @@ impl pb::trainer_server::Trainer for TrainerService {
         }
         cfg.validate()
             .map_err(|e| Status::invalid_argument(format!("config: {e}")))?;
+        if let Some(v) = &cfg.vgg_weights {
+            let rel = under_datasets("vgg_weights", "a safetensors file's", &v.to_string_lossy())?;
+            if !self.0.cfg.datasets.join(&rel).is_file() {
+                return Err(Status::failed_precondition(format!(
+                    "vgg_weights '{}': no such file under the trainer's --datasets directory",
+                    v.display()
+                )));
+            }
+        }
         let full = self.0.cfg.datasets.join(&dataset);
         crate::data::Dataset::open(&full, &cfg.split)
             .map_err(|e| Status::failed_precondition(e.to_string()))?;

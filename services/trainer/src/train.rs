@@ -18,7 +18,7 @@ use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
 use lightfarm_nets::{
     critic_loss, generator_loss, load_weights, save_weights, stable_param_ids, PatchGan,
-    PatchGanConfig, RelightNet,
+    PatchGanConfig, RelightNet, Vgg16,
 };
 use lightfarm_scene::Catalog;
 use serde::{Deserialize, Serialize};
@@ -55,6 +55,8 @@ pub struct StepLog {
     pub adversarial: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub critic: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub perceptual: Option<f32>,
     pub samples_per_second: f32,
 }
 
@@ -112,6 +114,12 @@ pub fn train(
         2,
     );
     drop(init_guard);
+    let vgg = cfg
+        .vgg_weights
+        .as_deref()
+        .map(|path| Vgg16::load(path, &device))
+        .transpose()
+        .map_err(|e| TrainError::Config(format!("vgg_weights: {e}")))?;
     let mut optim = lightfarm_nets::optimizer();
     let mut critic_optim = lightfarm_nets::optimizer();
     let mut start = 0u64;
@@ -173,6 +181,7 @@ pub fn train(
             &batch.targets,
             &cfg.loss,
             adversarial.then_some(&critic),
+            vgg.as_ref(),
         );
         let total = scalar(&loss.total);
         if !total.is_finite() {
@@ -206,6 +215,7 @@ pub fn train(
             residual: loss.residual.as_ref().map(scalar),
             adversarial: loss.adversarial.as_ref().map(scalar),
             critic: critic_value,
+            perceptual: loss.perceptual.as_ref().map(scalar),
             samples_per_second: examples.len() as f32 / started.elapsed().as_secs_f32().max(1e-9),
         };
         let line = serde_json::to_string(&entry).map_err(|e| TrainError::Config(e.to_string()))?;

@@ -76,6 +76,7 @@ fn both_render_nets_overfit_four_samples() {
         "all",
         Catalog::builtin().unwrap(),
         "cpu",
+        None,
         |_, _| {},
     )
     .unwrap();
@@ -240,4 +241,112 @@ fn the_example_config_is_valid() {
     let cfg = TrainConfig::load(&path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(cfg.net.render_net, RenderNet::Decomposed);
     assert!(cfg.dataset.ends_with("out/dataset"));
+}
+
+/// Random VGG16 + LPIPS weights in torchvision's / lpips's layout (the code cannot tell them
+/// from ImageNet's; crates/nets/tests/vgg.rs checks the maths).
+fn write_random_vgg(path: &std::path::Path) {
+    let convs = [
+        (0, 3, 64),
+        (2, 64, 64),
+        (5, 64, 128),
+        (7, 128, 128),
+        (10, 128, 256),
+        (12, 256, 256),
+        (14, 256, 256),
+        (17, 256, 512),
+        (19, 512, 512),
+        (21, 512, 512),
+        (24, 512, 512),
+        (26, 512, 512),
+        (28, 512, 512),
+    ];
+    let mut state = 1u64;
+    let mut rand = move |bound: f32| {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0) * bound
+    };
+    let mut tensors: Vec<(String, Vec<usize>, Vec<u8>)> = Vec::new();
+    let mut push = |name: String, shape: Vec<usize>, v: Vec<f32>| {
+        tensors.push((
+            name,
+            shape,
+            v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        ));
+    };
+    for (i, cin, cout) in convs {
+        let bound = (6.0 / (9.0 * cin as f32)).sqrt();
+        push(
+            format!("features.{i}.weight"),
+            vec![cout, cin, 3, 3],
+            (0..cout * cin * 9).map(|_| rand(bound)).collect(),
+        );
+        push(format!("features.{i}.bias"), vec![cout], vec![0.0; cout]);
+    }
+    for (k, c) in [64usize, 128, 256, 512, 512].into_iter().enumerate() {
+        push(
+            format!("lin{k}.model.1.weight"),
+            vec![1, c, 1, 1],
+            vec![0.1; c],
+        );
+    }
+    let views: Vec<(String, safetensors::tensor::TensorView<'_>)> = tensors
+        .iter()
+        .map(|(n, s, b)| {
+            (
+                n.clone(),
+                safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.clone(), b)
+                    .unwrap(),
+            )
+        })
+        .collect();
+    safetensors::serialize_to_file(views, None, path).unwrap();
+}
+
+/// With user-supplied VGG weights the perceptual term is in the loss curve, and `eval` with
+/// LPIPS weights adds an LPIPS column; a missing weights file is an error naming the key.
+#[test]
+fn user_vgg_weights_add_the_perceptual_loss_and_lpips() {
+    let dir = tempfile::tempdir().unwrap();
+    let weights = dir.path().join("vgg16_lpips.safetensors");
+    write_random_vgg(&weights);
+    let out = dir.path().join("run");
+    let mut cfg = config(&out, 3, RenderNet::Decomposed);
+    cfg.vgg_weights = Some(weights.clone());
+    let cancel = AtomicBool::new(false);
+    lightfarm_trainer::train(&cfg, Catalog::builtin().unwrap(), &mut (), &cancel).expect("train");
+    let losses = read_losses(&out).unwrap();
+    assert_eq!(losses.len(), 3);
+    for l in &losses {
+        let p = l.perceptual.expect("a perceptual term in every step");
+        assert!(p.is_finite() && p > 0.0, "perceptual loss {p}");
+    }
+    let rows = evaluate(
+        &[out.clone()],
+        common::dataset(),
+        "all",
+        Catalog::builtin().unwrap(),
+        "cpu",
+        Some(&weights),
+        |_, _| {},
+    )
+    .unwrap();
+    println!("{}", table(&rows));
+    assert!(table(&rows).contains("LPIPS"));
+    for r in &rows {
+        let l = r.lpips.expect("an LPIPS value per row");
+        assert!(l.is_finite() && l > 0.0, "{}: LPIPS {l}", r.model);
+    }
+
+    let mut cfg = config(&dir.path().join("run2"), 3, RenderNet::Decomposed);
+    cfg.vgg_weights = Some(dir.path().join("no-such.safetensors"));
+    let err = lightfarm_trainer::train(&cfg, Catalog::builtin().unwrap(), &mut (), &cancel)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("vgg_weights") && err.contains("no-such.safetensors"),
+        "{err}"
+    );
 }
