@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
-# Cluster fault test across containers: a 3-worker compose cluster renders a 30-sample job while
-# one worker is `docker kill`ed, another is cut off the network (`docker network disconnect`)
-# for three lease lengths, and the coordinator is `docker restart`ed. Passes when the job
-# completes with every sample committed exactly once, and a worker started with a wrong token
-# is refused and says so. Needs Docker and a Debian mirror (for the base image); not part of
-# .ci/run. Builds the images first (scripts/docker-build.sh). ~1 minute once images exist.
+# Cluster fault test across containers. A 3-worker compose cluster renders a 30-sample job
+# while one worker is `docker kill`ed, another is cut off the network (`docker network
+# disconnect`) for three lease lengths, and the coordinator is `docker restart`ed: the job must
+# complete with every sample committed exactly once. A worker started with a wrong token must be
+# refused and say so. Prometheus (profile metrics) must report the job's 30 committed tasks.
+# Then the trainer trains on the job's folder export and is `docker kill`ed mid-run: restarted,
+# it resumes the job, and the client following it must see it complete with one loss line per
+# step. Needs Docker and a Debian mirror (base images); not part of .ci/run. Builds the images
+# first (scripts/docker-build.sh). A few minutes once images exist.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export LIGHTFARM_TOKEN=${LIGHTFARM_TOKEN:-cluster-test-$$}
@@ -45,4 +48,37 @@ echo "a worker with a wrong token is refused and says so"
 log=$(timeout 120 docker run --rm --network lightfarm_default -e LIGHTFARM_TOKEN=wrong lightfarm:local \
       serve worker --coordinator http://coordinator:7070 2>&1 || true)
 echo "$log" | grep -q "refused this worker's token" || { echo "FAIL: no refusal in the worker's log:"; echo "$log" | tail -3; exit 1; }
+echo "Prometheus (profile metrics) scrapes the coordinator's job"
+compose --profile metrics up -d prometheus >/dev/null
+prom=http://127.0.0.1:${PROMETHEUS_PORT:-9091}
+done_metric() {
+    curl -sf "$prom/api/v1/query" --data-urlencode 'query=max(lightfarm_tasks_done)' |
+        python3 -c 'import json, sys; r = json.load(sys.stdin)["data"]["result"]; print(int(float(r[0]["value"][1])) if r else 0)'
+}
+v=0
+for _ in $(seq 1 120); do v=$(done_metric 2>/dev/null || echo 0); [ "$v" -ge 30 ] && break; sleep 1; done
+[ "$v" -ge 30 ] || { echo "FAIL: Prometheus reports lightfarm_tasks_done = $v, expected 30"; exit 1; }
+echo "prometheus: lightfarm_tasks_done = $v"
+echo "the trainer trains on the export and survives docker kill"
+mkdir -p deploy/datasets
+rm -rf "deploy/datasets/$job"
+"$B" export "$job" --format folder --out "deploy/datasets/$job" >/dev/null
+cfg=$(mktemp)
+printf 'steps = 40\nbatch = 2\ncrop = 16\ncheckpoint_every = 5\n[net]\nwidths = [8, 16, 32]\ncritic_width = 8\n' > "$cfg"
+trainer=http://127.0.0.1:${LIGHTFARM_TRAINER_PORT:-7071}
+for _ in $(seq 1 120); do "$B" train-jobs --trainer "$trainer" >/dev/null 2>&1 && break; sleep 0.5; done
+tlog=$(mktemp)
+"$B" train "$cfg" --trainer "$trainer" --dataset "$job" >"$tlog" 2>&1 &
+client=$!
+losses() { docker exec lightfarm_trainer_1 sh -c 'cat /data/jobs/*/run/losses.jsonl 2>/dev/null | wc -l'; }
+for _ in $(seq 1 600); do [ "$(losses || echo 0)" -ge 8 ] 2>/dev/null && break; sleep 0.5; done
+echo "docker kill the trainer at $(losses) steps"
+docker kill lightfarm_trainer_1 >/dev/null
+sleep 2
+docker start lightfarm_trainer_1 >/dev/null
+wait "$client" || { echo "FAIL: the train client failed:"; tail -5 "$tlog"; exit 1; }
+grep -q "completed at step 40" "$tlog" || { echo "FAIL: job did not complete:"; tail -5 "$tlog"; exit 1; }
+steps=$(docker exec lightfarm_trainer_1 sh -c 'cat /data/jobs/*/run/losses.jsonl' | grep -o '"step": *[0-9]*' | grep -o '[0-9]*$' | tr '\n' ' ')
+[ "$steps" = "$(seq -s ' ' 1 40) " ] || { echo "FAIL: loss steps are not 1..40 once each: $steps"; exit 1; }
+"$B" train-jobs --trainer "$trainer"
 echo "PASS"
