@@ -1,0 +1,127 @@
+#!/usr/bin/env bash
+# Every GPU figure in BENCHMARKS.md, in one run on an NVIDIA machine:
+#   1. the renderer on the GPU (sphere and head scenes of bench/compare.sh, two sizes), beside
+#      Mitsuba 3's cuda_ad_rgb on the same scenes when `import mitsuba` works;
+#   2. training iterations/s of the relighting network, Burn's wgpu backend vs the same network
+#      in PyTorch CUDA (bench/train_torch.py), same run, same shapes, batch 1 and 8 at 256²;
+#   3. the whole pipeline on the GPU: a dataset rendered, a tiny network trained on it until it
+#      overfits, `lightfarm eval` on the samples it saw.
+# Usage: bench/gpu.sh [OUT]  (default out/gpu-bench)
+# Env: BIN = a folder with prebuilt `lightfarm`, `bench_train` and `bench_scene` (built with
+#      --features gpu) for machines without cargo; by default they are built here. SPHERE = the
+#      bench sphere (`bench_scene` output) if it exists already.
+#      PYTHON = a python with torch and CUDA (default python3). STEPS = overfit steps (800).
+#      ONLY = render, train or pipeline runs that section alone.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+OUT=${1:-out/gpu-bench}
+STEPS=${STEPS:-800}
+PYTHON=${PYTHON:-python3}
+mkdir -p "$OUT"
+OUT=$(cd "$OUT" && pwd)
+if [ -z "${BIN:-}" ]; then
+    export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/lightfarm-target}
+    cargo build --release --locked -p lightfarm --features gpu >&2
+    cargo build --release --locked -p lightfarm-trainer --example bench_train --features gpu >&2
+    cargo build --release --locked -p lightfarm-render --example bench_scene >&2
+    BIN=$OUT/bin
+    mkdir -p "$BIN"
+    cp "$CARGO_TARGET_DIR"/release/lightfarm "$CARGO_TARGET_DIR"/release/examples/bench_{train,scene} "$BIN"/
+fi
+lf=$BIN/lightfarm
+export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
+
+echo "## machine"
+nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader || true
+"$lf" devices
+
+want() { [ -z "${ONLY:-}" ] || [ "$ONLY" = "$1" ]; }
+
+if want render; then
+echo "## renderer: lightfarm (Vulkan) vs Mitsuba 3 cuda_ad_rgb on the same GPU, same scenes"
+sphere=${SPHERE:-$OUT/diffuse_sphere.glb}
+[ -f "$sphere" ] || "$BIN/bench_scene" "$sphere" >&2
+mitsuba=0
+if "$PYTHON" -c "import mitsuba" 2>/dev/null; then mitsuba=1; else echo "(no mitsuba module: lightfarm only)"; fi
+for sz in "256 256" "1024 256"; do
+    set -- $sz
+    "$lf" render --scene "$sphere" --hdri assets/hdri/rooitou_park_1k.hdr \
+        --camera 0,0,3:0,0,0:30 --size "$1x$1" --spp "$2" --max-depth 8 --device gpu \
+        --out "$OUT/sphere_$1.exr" --stats "$OUT/sphere_$1.lf.json" >&2
+    "$lf" render --scene assets/heads/LeePerrySmith_textured.glb \
+        --hdri assets/hdri/studio_small_03_1k.hdr --size "$1x$1" --spp "$2" --max-depth 8 \
+        --device gpu --out "$OUT/head_$1.exr" --stats "$OUT/head_$1.lf.json" >&2
+    if [ $mitsuba = 1 ]; then
+        "$PYTHON" bench/mitsuba_ref.py --scene sphere --sphere-mesh "$sphere" \
+            --variant cuda_ad_rgb --width "$1" --height "$1" --spp "$2" | tail -1 >"$OUT/sphere_$1.mi.json"
+        "$PYTHON" bench/mitsuba_ref.py --scene head --variant cuda_ad_rgb \
+            --width "$1" --height "$1" --spp "$2" | tail -1 >"$OUT/head_$1.mi.json"
+    fi
+    for scene in sphere head; do
+        "$PYTHON" - "$OUT/${scene}_$1" "$scene" "$1" "$2" <<'PY'
+import json, os, sys
+base, scene, size, spp = sys.argv[1:]
+lf = json.load(open(base + ".lf.json"))
+line = (f"{scene} {size}² {spp} spp: lightfarm ({lf['device']}) "
+        f"{lf['samples_per_second'] / 1e6:.1f} M samples/s, {lf['rays_per_second'] / 1e6:.1f} M rays/s")
+if os.path.exists(base + ".mi.json"):
+    import mitsuba, numpy as np
+    mitsuba.set_variant("scalar_rgb")
+    layers = dict(mitsuba.Bitmap(base + ".exr").split())
+    m = np.array(layers["lit0"], dtype=np.float64).reshape(-1, 3).mean(axis=0)
+    line += f", mean {' '.join(f'{x:.4f}' for x in m)}"
+    mi = json.load(open(base + ".mi.json"))
+    line += (f"; mitsuba ({mi['variant']}) {mi['samples_per_second'] / 1e6:.1f} M samples/s, "
+             f"mean {' '.join(f'{x:.4f}' for x in mi['mean'])}; "
+             f"ratio lightfarm/mitsuba {lf['samples_per_second'] / mi['samples_per_second']:.2f}x")
+print(line)
+PY
+    done
+done
+
+fi
+
+if want train; then
+echo "## training: Burn wgpu vs PyTorch CUDA (same network, same shapes)"
+for batch in 1 8; do
+    common=(--batch "$batch" --size 256 --widths 32,64,128,256,512 --iters 10 --warmup 3)
+    burn=$("$BIN/bench_train" "${common[@]}" --device gpu 2>"$OUT/bench_train_$batch.log")
+    torch=$("$PYTHON" bench/train_torch.py "${common[@]}" --device cuda)
+    "$PYTHON" - "$burn" "$torch" <<'PY'
+import json, sys
+b, t = json.loads(sys.argv[1]), json.loads(sys.argv[2])
+assert b["params"] == t["params"], f"parameter counts differ: burn {b['params']} vs torch {t['params']}"
+print(f"batch {b['batch']} x {b['size']}², {b['params']:,} generator parameters: "
+      f"burn wgpu {b['seconds_per_iter_median']:.4f} s/iter, pytorch {t['device']} "
+      f"{t['seconds_per_iter_median']:.4f} s/iter (torch {t['torch']}), "
+      f"ratio burn/pytorch {t['seconds_per_iter_median'] / b['seconds_per_iter_median']:.2f}x")
+PY
+done
+
+fi
+
+if want pipeline; then
+echo "## pipeline on the GPU: render, overfit $STEPS steps, eval"
+start=$(date +%s.%N)
+# Three samples: the demo spec's index 3 onwards use the ICT head, which renders ~35x slower
+# per ray on NVIDIA than on lavapipe (open problem, see BENCHMARKS.md).
+"$lf" demo --out "$OUT/demo" --count 3 --size 64 --spp 64 --device gpu --train-steps 0 >&2
+echo "rendered and exported 3 samples (64², 64 spp) in $("$PYTHON" -c "import time; print(f'{time.time() - $start:.1f}')") s"
+cat >"$OUT/overfit.toml" <<EOF
+dataset = "demo/dataset"
+out = "overfit"
+split = "all"
+steps = $STEPS
+batch = 6
+lr = 2e-3
+checkpoint_every = 400
+device = "gpu"
+[net]
+widths = [16, 32, 64, 128]
+critic_width = 16
+EOF
+start=$(date +%s.%N)
+"$lf" train "$OUT/overfit.toml" 2>&1 | tail -1
+echo "trained $STEPS steps in $("$PYTHON" -c "import time; print(f'{time.time() - $start:.1f}')") s"
+"$lf" eval --model "$OUT/overfit" --split all --device gpu
+fi
