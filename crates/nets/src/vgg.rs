@@ -19,7 +19,7 @@ use safetensors::{Dtype, SafeTensors};
 use crate::NetsError;
 
 /// torchvision's `features` index, input and output channels of each 3×3 convolution.
-const CONVS: [(usize, usize, usize); 13] = [
+pub const VGG16_CONVS: [(usize, usize, usize); 13] = [
     (0, 3, 64),
     (2, 64, 64),
     (5, 64, 128),
@@ -35,7 +35,7 @@ const CONVS: [(usize, usize, usize); 13] = [
     (28, 512, 512),
 ];
 
-/// Convolutions (positions in [`CONVS`]) whose ReLU output is a tap: relu1_2, relu2_2, relu3_3,
+/// Convolutions (positions in [`VGG16_CONVS`]) whose ReLU output is a tap: relu1_2, relu2_2, relu3_3,
 /// relu4_3 and relu5_3, the layers LPIPS and Total Relighting's perceptual loss use. A 2×2 max
 /// pool follows every tap but the last.
 const TAPS: [usize; 5] = [1, 3, 6, 9, 12];
@@ -144,7 +144,7 @@ impl Vgg16 {
     }
 
     fn from_file(file: &WeightFile<'_>, device: &Device) -> Result<Self, NetsError> {
-        let convs = CONVS
+        let convs = VGG16_CONVS
             .iter()
             .map(|&(index, cin, cout)| {
                 Ok((

@@ -7,25 +7,9 @@ use std::collections::HashMap;
 use std::path::Path;
 
 use burn::prelude::*;
+use lightfarm_nets::vgg::{TAP_CHANNELS, VGG16_CONVS};
 use lightfarm_nets::{perceptual_loss, Lpips, Vgg16};
 use safetensors::{Dtype, View};
-
-const CONVS: [(usize, usize, usize); 13] = [
-    (0, 3, 64),
-    (2, 64, 64),
-    (5, 64, 128),
-    (7, 128, 128),
-    (10, 128, 256),
-    (12, 256, 256),
-    (14, 256, 256),
-    (17, 256, 512),
-    (19, 512, 512),
-    (21, 512, 512),
-    (24, 512, 512),
-    (26, 512, 512),
-    (28, 512, 512),
-];
-const TAP_CHANNELS: [usize; 5] = [64, 128, 256, 512, 512];
 
 struct Rng(u64);
 impl Rng {
@@ -66,7 +50,7 @@ impl View for &Raw {
 fn weights(seed: u64, lin0: &[f32], all_heads: bool) -> HashMap<String, (Vec<usize>, Vec<f32>)> {
     let mut r = Rng(seed);
     let mut m = HashMap::new();
-    for (i, cin, cout) in CONVS {
+    for (i, cin, cout) in VGG16_CONVS {
         // He-uniform keeps activations of the same order through 13 layers.
         let bound = (6.0 / (9.0 * cin as f32)).sqrt();
         let w = (0..cout * cin * 9).map(|_| r.symmetric(bound)).collect();

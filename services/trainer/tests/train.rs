@@ -246,21 +246,6 @@ fn the_example_config_is_valid() {
 /// Random VGG16 + LPIPS weights in torchvision's / lpips's layout (the code cannot tell them
 /// from ImageNet's; crates/nets/tests/vgg.rs checks the maths).
 fn write_random_vgg(path: &std::path::Path) {
-    let convs = [
-        (0, 3, 64),
-        (2, 64, 64),
-        (5, 64, 128),
-        (7, 128, 128),
-        (10, 128, 256),
-        (12, 256, 256),
-        (14, 256, 256),
-        (17, 256, 512),
-        (19, 512, 512),
-        (21, 512, 512),
-        (24, 512, 512),
-        (26, 512, 512),
-        (28, 512, 512),
-    ];
     let mut state = 1u64;
     let mut rand = move |bound: f32| {
         state = state
@@ -276,7 +261,7 @@ fn write_random_vgg(path: &std::path::Path) {
             v.iter().flat_map(|x| x.to_le_bytes()).collect(),
         ));
     };
-    for (i, cin, cout) in convs {
+    for (i, cin, cout) in lightfarm_nets::vgg::VGG16_CONVS {
         let bound = (6.0 / (9.0 * cin as f32)).sqrt();
         push(
             format!("features.{i}.weight"),
@@ -285,7 +270,7 @@ fn write_random_vgg(path: &std::path::Path) {
         );
         push(format!("features.{i}.bias"), vec![cout], vec![0.0; cout]);
     }
-    for (k, c) in [64usize, 128, 256, 512, 512].into_iter().enumerate() {
+    for (k, c) in lightfarm_nets::vgg::TAP_CHANNELS.into_iter().enumerate() {
         push(
             format!("lin{k}.model.1.weight"),
             vec![1, c, 1, 1],
@@ -324,7 +309,7 @@ fn user_vgg_weights_add_the_perceptual_loss_and_lpips() {
         assert!(p.is_finite() && p > 0.0, "perceptual loss {p}");
     }
     let rows = evaluate(
-        &[out.clone()],
+        std::slice::from_ref(&out),
         common::dataset(),
         "all",
         Catalog::builtin().unwrap(),
