@@ -2,5 +2,13 @@
 # The whole default test suite (CPU-only machines render on lavapipe). Usage: scripts/test.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# LIGHTFARM_BLESS rewrites golden files instead of comparing with them: in CI that would turn
+# every golden test green whatever the code does.
+if [ -n "${LIGHTFARM_BLESS:-}" ] && [ -n "${CI:-}" ] && [ "${CI}" != false ]; then
+    echo "error: LIGHTFARM_BLESS is set under CI (CI=$CI): golden tests would rewrite their goldens" >&2
+    echo "unset LIGHTFARM_BLESS; bless goldens locally and commit them" >&2
+    exit 1
+fi
+./scripts/check-test-inputs.sh
 source scripts/setup-system.sh
 cargo test --workspace --locked -- --test-threads=2 "$@"

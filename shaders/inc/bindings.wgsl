@@ -64,7 +64,7 @@ struct Push {
     write_aux: u32,
     mode: u32,   // probe / test kernels: what to run
     count: u32,  // probe / test kernels: how many items
-    _pad0: u32,
+    mutate: u32, // probe kernel: 0, or 1 + axis of a deliberately biased sampler (tests only)
     _pad1: u32,
 };
 

@@ -67,6 +67,14 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
     var prev_pdf = 0.0;
     var prev_delta = true;
     var only_lens = true; // still on the camera ray (possibly through lenses): a miss is background
+    // Next-event estimation sees the environment through lens surfaces (shadow_transmittance),
+    // so a BSDF-sampled path that only refracts through lenses after its last non-delta vertex
+    // reaches light that NEE at that vertex also counted: it is weighted by MIS against NEE
+    // with that vertex's pdf (`nee_pdf`) instead of 1, or behind glasses light counts twice.
+    // Reflections off a lens, or more lens layers than a shadow ray crosses, NEE never sees.
+    var nee_pdf = 0.0;
+    var through_lenses = false;
+    var lens_layers = 0u;
     for (var depth = 0u; depth <= params.max_depth; depth++) {
         *rays += 1u;
         let hit = trace_closest(ray);
@@ -80,6 +88,8 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
                 var w = 1.0;
                 if (!prev_delta) {
                     w = power_heuristic(prev_pdf, env_pdf(light, ray.dir));
+                } else if (through_lenses) {
+                    w = power_heuristic(nee_pdf, env_pdf(light, ray.dir));
                 }
                 radiance += throughput * le * w;
             }
@@ -136,6 +146,16 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
         throughput *= bs.weight;
         prev_pdf = bs.pdf;
         prev_delta = bs.is_delta;
+        if (!bs.is_delta) {
+            nee_pdf = bs.pdf;
+            through_lenses = true;
+            lens_layers = 0u;
+        } else {
+            // Frames face the incoming ray (wo.z > 0): a refraction leaves through the back.
+            lens_layers += 1u;
+            let refracted = bs.wi.z < 0.0 && (sp.flags & MAT_FLAG_LENS) != 0u;
+            through_lenses = through_lenses && refracted && lens_layers < SHADOW_LENS_LAYERS;
+        }
         ray = Ray(offset_origin(sp.p, sp.ng, wi_world), wi_world, 0.0, 3.4e38);
 
         if (depth + 1u >= params.rr_depth) {

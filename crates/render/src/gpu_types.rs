@@ -84,7 +84,10 @@ pub struct Push {
     pub write_aux: u32,
     pub mode: u32,
     pub count: u32,
-    pub _pad: [u32; 2],
+    /// Probe kernel only: 0, or 1 + axis of a deliberately wrong sampler (see probe.wgsl);
+    /// the tests use it to show that their statistics reject a biased sampler.
+    pub mutate: u32,
+    pub _pad: u32,
 }
 
 const _: () = assert!(std::mem::size_of::<Params>() == 112);

@@ -56,6 +56,8 @@ pub struct Probe {
     ctx: Arc<GpuContext>,
     probe: ComputeKernel,
     trace: ComputeKernel,
+    /// 0, or 1 + the axis of the deliberately biased samplers (see [`Probe::biased`]).
+    mutate: u32,
 }
 
 fn check_len(n: usize) -> Result<(), RenderError> {
@@ -86,7 +88,18 @@ impl Probe {
                 shaders::NUM_BINDINGS,
                 push,
             )?,
+            mutate: 0,
         })
+    }
+
+    /// Makes the BSDF and environment samplers deliberately wrong (`Some(axis)`) or right again
+    /// (`None`), for showing that a statistical test rejects a biased sampler: a sample whose
+    /// direction has a negative component on `axis` (0 = x, 1 = y, 2 = z; the local frame for
+    /// BSDFs, world space for the environment) is redrawn with probability 0.1, so the sampled
+    /// density is off by ±5% of the reported pdf when that half holds half the probability.
+    /// The pdfs (`bsdf_eval`, `env_eval`) stay correct.
+    pub fn set_bias(&mut self, axis: Option<usize>) {
+        self.mutate = axis.map_or(0, |a| 1 + a.min(2) as u32);
     }
 
     fn run(
@@ -99,9 +112,10 @@ impl Probe {
         let Job {
             input,
             out_vec4s,
-            push,
+            mut push,
             seed,
         } = job;
+        push.mutate = self.mutate;
         let params = Params {
             seed,
             tlas_node_offset: scene.tlas_node_offset,

@@ -10,6 +10,8 @@ use lightfarm_light::{EnvTransform, Hdri};
 use lightfarm_render::probe::{Probe, ProbeSurface};
 use lightfarm_render::EnvLight;
 
+use common::bsdf_ref::{fresnel_dielectric, RefSurface};
+
 const THETA_BINS: usize = 40;
 const PHI_BINS: usize = 80;
 const SUB: usize = 6;
@@ -66,48 +68,83 @@ fn expected_from_pdf(pdfs: &[f64], d_omega: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
-fn check_bsdf(name: &str, s: ProbeSurface, theta_o_deg: f32, tests: u32) {
-    let p = probe();
-    let t = theta_o_deg.to_radians();
-    let wo = [t.sin(), 0.0, t.cos()];
-    let samples = p.bsdf_samples(&s, wo, SAMPLES, 7).expect("sample");
+/// Pearson's chi-square of `p`'s BSDF samples for `wo` against the integral of the device's own
+/// pdf over each cell; also checks the pdf integrates to at most 1.
+fn bsdf_chi2(
+    p: &Probe,
+    name: &str,
+    s: &ProbeSurface,
+    wo: [f32; 3],
+    tests: u32,
+) -> Result<f64, String> {
+    let samples = p.bsdf_samples(s, wo, SAMPLES, 7).expect("sample");
     let mut observed = vec![0.0; THETA_BINS * PHI_BINS];
-    let mut checked = Vec::new();
     for smp in samples.iter().filter(|s| s.valid) {
         if let Some(c) = cell_of(smp.wi) {
             observed[c] += 1.0;
         }
-        if checked.len() < 2000 {
-            checked.push(*smp);
-        }
     }
     let (grid, d_omega) = integration_grid();
-    let evals = p.bsdf_eval(&s, wo, &grid).expect("eval");
+    let evals = p.bsdf_eval(s, wo, &grid).expect("eval");
     let pdfs: Vec<f64> = evals.iter().map(|e| e.1 as f64).collect();
     let expected = expected_from_pdf(&pdfs, d_omega, SAMPLES);
     let total: f64 = expected.iter().sum::<f64>() / SAMPLES as f64;
     assert!(total <= 1.01, "{name}: pdf integrates to {total} > 1");
-    common::chi2_test(name, &observed, &expected, tests).unwrap_or_else(|e| panic!("{e}"));
+    common::chi2_test(name, &observed, &expected, tests)
+}
 
-    // The sample's pdf and weight agree with eval() at the sampled direction.
-    let wis: Vec<[f32; 3]> = checked.iter().map(|s| s.wi).collect();
-    let ev = p.bsdf_eval(&s, wo, &wis).expect("eval at samples");
-    for (smp, (f_cos, pdf)) in checked.iter().zip(ev) {
-        let rel = (smp.pdf - pdf).abs() / pdf.max(1e-6);
+/// The chi-square test of the shader's sampler, which must also reject the same sampler made
+/// 5% wrong (so a pass means something); then the sampled pdfs and weights against the
+/// independent CPU evaluation of the model at the sampled directions.
+fn check_bsdf(name: &str, s: ProbeSurface, theta_o_deg: f32, tests: u32) {
+    let mut p = probe();
+    let t = theta_o_deg.to_radians();
+    let wo = [t.sin(), 0.0, t.cos()];
+    bsdf_chi2(&p, name, &s, wo, tests).unwrap_or_else(|e| panic!("{e}"));
+
+    // wo lies in the xz plane, so the lobes are symmetric in y: biasing the y < 0 half puts
+    // exactly half the probability there and the biased sampler is off by ±5% everywhere.
+    p.set_bias(Some(1));
+    let biased = bsdf_chi2(&p, &format!("{name} (5% biased sampler)"), &s, wo, tests);
+    assert!(
+        biased.is_err(),
+        "{name}: the chi-square test accepted a sampler whose density is 5% off (p = {biased:?})"
+    );
+    p.set_bias(None);
+
+    let reference = RefSurface::from(&s);
+    let samples = p.bsdf_samples(&s, wo, 4000, 13).expect("sample");
+    let mut valid = 0;
+    for smp in samples.iter().filter(|s| s.valid) {
+        valid += 1;
+        let (f_cos, pdf) = reference.eval(wo, smp.wi);
         assert!(
-            rel < 1e-3,
-            "{name}: sampled pdf {} vs eval pdf {pdf}",
-            smp.pdf
+            pdf > 0.0,
+            "{name}: sampled {:?}, where the model's pdf is 0",
+            smp.wi
         );
-        for (sw, f) in smp.weight.iter().zip(f_cos) {
+        let rel = (f64::from(smp.pdf) - pdf).abs() / pdf;
+        assert!(
+            rel < 2e-3,
+            "{name}: sampled pdf {} vs the CPU model's {pdf} at {:?}",
+            smp.pdf,
+            smp.wi
+        );
+        for (k, (sw, f)) in smp.weight.iter().zip(f_cos).enumerate() {
             let w = f / pdf;
             assert!(
-                (sw - w).abs() <= 1e-3 * w.max(1.0),
-                "{name}: weight {:?} vs f·cos/pdf {w}",
-                smp.weight
+                (f64::from(*sw) - w).abs() <= 2e-3 * w.max(1e-2),
+                "{name}: weight[{k}] {} vs the CPU model's f·cos/pdf {w} at {:?}",
+                sw,
+                smp.wi
             );
         }
     }
+    // Rough lobes send many samples below the horizon (invalid): still enough to check.
+    assert!(
+        valid > 1000,
+        "{name}: only {valid} of 4000 samples are valid"
+    );
 }
 
 fn surface(base: f32, metallic: f32, roughness: f32, specular: f32) -> ProbeSurface {
@@ -151,22 +188,54 @@ fn diffuse_plus_specular_mixture_matches_its_pdf() {
     check_bsdf("diffuse+ggx", surface(0.5, 0.0, 0.4, 1.0), 45.0, 1);
 }
 
-fn fresnel(cos_i: f64, eta: f64) -> f64 {
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
+/// Counts of (reflected, refracted) samples of a smooth dielectric, checking each direction
+/// (mirror; Snell's law) and its weight (1; radiance scaled by 1/η² on refraction, pbrt's
+/// radiance transport) exactly.
+fn dielectric_counts(p: &Probe, s: &ProbeSurface, theta_deg: f64, n: usize) -> [f64; 2] {
+    let t = theta_deg.to_radians();
+    let wo = [t.sin() as f32, 0.0, t.cos() as f32];
+    let eta = f64::from(s.ior);
+    let mut counts = [0.0; 2];
+    for smp in &p.bsdf_samples(s, wo, n, 3).expect("sample") {
+        assert!(smp.valid && smp.delta, "dielectric samples are delta");
+        if smp.wi[2] > 0.0 {
+            counts[0] += 1.0;
+            assert!(
+                (smp.wi[0] + wo[0]).abs() < 1e-5 && (smp.wi[2] - wo[2]).abs() < 1e-5,
+                "mirror direction"
+            );
+            assert_eq!(
+                smp.weight, [1.0; 3],
+                "a mirror reflection keeps the radiance"
+            );
+        } else {
+            counts[1] += 1.0;
+            let sin_t = (t.sin() / eta) as f32;
+            assert!(
+                (smp.wi[0] + sin_t).abs() < 1e-4,
+                "Snell: sin θt {} vs {}",
+                -smp.wi[0],
+                sin_t
+            );
+            let w = 1.0 / (eta * eta);
+            for c in smp.weight {
+                assert!(
+                    (f64::from(c) - w).abs() < 1e-5 * w,
+                    "refraction weight {:?} vs 1/η² = {w}",
+                    smp.weight
+                );
+            }
+        }
     }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let rs = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    let rp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    0.5 * (rs * rs + rp * rp)
+    counts
 }
 
 /// A smooth dielectric is a two-point distribution: reflection with probability F, refraction
-/// (Snell's law) otherwise. Chi-square on the two outcomes; both directions checked exactly.
+/// (Snell's law) otherwise. Chi-square on the two outcomes against an independent Fresnel,
+/// which must reject the sampler when it is made to redraw 10% of its refractions.
 #[test]
 fn smooth_dielectric_reflects_with_fresnel_probability() {
-    let p = probe();
+    let mut p = probe();
     let mut s = surface(1.0, 0.0, 0.0, 1.0);
     s.transmission = 1.0;
     let n = 200_000;
@@ -178,39 +247,17 @@ fn smooth_dielectric_reflects_with_fresnel_probability() {
         (60.0, 1.0 / 1.5),
     ] {
         s.ior = ior;
-        let t = theta_deg.to_radians();
-        let wo = [t.sin() as f32, 0.0, t.cos() as f32];
-        let f = fresnel(t.cos(), ior as f64);
-        let samples = p.bsdf_samples(&s, wo, n, 3).expect("sample");
-        let mut counts = [0.0; 2];
-        for smp in &samples {
-            assert!(smp.valid && smp.delta, "dielectric samples are delta");
-            if smp.wi[2] > 0.0 {
-                counts[0] += 1.0;
-                assert!(
-                    (smp.wi[0] + wo[0]).abs() < 1e-5 && (smp.wi[2] - wo[2]).abs() < 1e-5,
-                    "mirror direction"
-                );
-            } else {
-                counts[1] += 1.0;
-                let sin_t = (t.sin() / ior as f64) as f32;
-                assert!(
-                    (smp.wi[0] + sin_t).abs() < 1e-4,
-                    "Snell: sin θt {} vs {}",
-                    -smp.wi[0],
-                    sin_t
-                );
-            }
-        }
+        let f = fresnel_dielectric(theta_deg.to_radians().cos(), ior as f64);
+        let name = format!("dielectric θ={theta_deg} η={ior}");
+        p.set_bias(None);
+        let counts = dielectric_counts(&p, &s, theta_deg, n);
         let expected = [f * n as f64, (1.0 - f) * n as f64];
         if f < 1.0 {
-            common::chi2_test(
-                &format!("dielectric θ={theta_deg} η={ior}"),
-                &counts,
-                &expected,
-                5,
-            )
-            .unwrap_or_else(|e| panic!("{e}"));
+            common::chi2_test(&name, &counts, &expected, 5).unwrap_or_else(|e| panic!("{e}"));
+            p.set_bias(Some(2));
+            let biased = dielectric_counts(&p, &s, theta_deg, n);
+            let r = common::chi2_test(&name, &biased, &expected, 5);
+            assert!(r.is_err(), "{name}: accepted a biased sampler: {r:?}");
         } else {
             assert_eq!(counts[1], 0.0, "total internal reflection never refracts");
         }
@@ -278,22 +325,53 @@ fn environment_sampler_matches_its_pdf() {
             hdri: hdri.clone(),
             transform,
         };
-        let p = probe();
-        let samples = p.env_samples(&light, SAMPLES, 11).expect("env samples");
-        let mut observed = vec![0.0; (w * h) as usize];
-        for (d, pdf) in &samples {
-            assert!(*pdf > 0.0, "sampled direction with pdf 0");
-            observed[env_bin(&light, *d, w, h)] += 1.0;
-        }
-        let expected: Vec<f64> = texel_probabilities(&p, &light)
-            .iter()
-            .map(|q| q * SAMPLES as f64)
-            .collect();
-        let total: f64 = expected.iter().sum::<f64>() / SAMPLES as f64;
+        let mut p = probe();
+        let probs = texel_probabilities(&p, &light);
+        let total: f64 = probs.iter().sum();
         assert!((total - 1.0).abs() < 1e-3, "env pdf integrates to {total}");
-        common::chi2_test(&format!("env {transform:?}"), &observed, &expected, 2)
-            .unwrap_or_else(|e| panic!("{e}"));
+        let chi2 = |p: &Probe| {
+            let mut observed = vec![0.0; (w * h) as usize];
+            for (d, pdf) in &p.env_samples(&light, SAMPLES, 11).expect("env samples") {
+                assert!(*pdf > 0.0, "sampled direction with pdf 0");
+                observed[env_bin(&light, *d, w, h)] += 1.0;
+            }
+            let expected: Vec<f64> = probs.iter().map(|q| q * SAMPLES as f64).collect();
+            common::chi2_test(&format!("env {transform:?}"), &observed, &expected, 2)
+        };
+        chi2(&p).unwrap_or_else(|e| panic!("{e}"));
+        p.set_bias(Some(most_balanced_axis(&light, &probs)));
+        let biased = chi2(&p);
+        assert!(
+            biased.is_err(),
+            "env {transform:?}: accepted a biased sampler: {biased:?}"
+        );
     }
+}
+
+/// World direction of texel `i`'s centre.
+fn texel_dir(light: &EnvLight, i: usize) -> [f32; 3] {
+    let (w, h) = (light.hdri.width as usize, light.hdri.height as usize);
+    light.transform.env_to_world(lightfarm_light::uv_to_dir([
+        ((i % w) as f32 + 0.5) / w as f32,
+        ((i / w) as f32 + 0.5) / h as f32,
+    ]))
+}
+
+/// The world axis whose negative half holds the probability closest to 1/2, so that the
+/// biased sampler (which redraws there) departs from the pdf as much as it can.
+fn most_balanced_axis(light: &EnvLight, probs: &[f64]) -> usize {
+    let mut q = [0.0f64; 3];
+    for (i, p) in probs.iter().enumerate() {
+        let d = texel_dir(light, i);
+        for k in 0..3 {
+            if d[k] < 0.0 {
+                q[k] += p;
+            }
+        }
+    }
+    (0..3)
+        .min_by(|&a, &b| (q[a] - 0.5).abs().total_cmp(&(q[b] - 0.5).abs()))
+        .unwrap_or(0)
 }
 
 /// The same check on a real 1024×512 sun-and-sky map (half a million texels, one tiny sun),
@@ -303,7 +381,6 @@ fn environment_sampler_matches_its_pdf_on_a_real_map() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../assets/hdri/rooitou_park_1k.hdr");
     let hdri = Hdri::load(&path).expect("built-in HDRI");
-    let (w, h) = (hdri.width, hdri.height);
     let transform = EnvTransform {
         rotation_deg: 30.0,
         flip: false,
@@ -313,22 +390,26 @@ fn environment_sampler_matches_its_pdf_on_a_real_map() {
         hdri,
         transform,
     };
-    let p = probe();
+    let mut p = probe();
     let n = 2_000_000;
     let (bw, bh) = (64u32, 32u32);
-    let mut observed = vec![0.0; (bw * bh) as usize];
-    for (d, _) in p.env_samples(&light, n, 5).expect("env samples") {
-        observed[env_bin(&light, d, bw, bh)] += 1.0;
-    }
+    let probs = texel_probabilities(&p, &light);
     let mut expected = vec![0.0; (bw * bh) as usize];
-    for (i, q) in texel_probabilities(&p, &light).into_iter().enumerate() {
-        let texel_centre = lightfarm_light::uv_to_dir([
-            ((i as u32 % w) as f32 + 0.5) / w as f32,
-            ((i as u32 / w) as f32 + 0.5) / h as f32,
-        ]);
-        expected[env_bin(&light, light.transform.env_to_world(texel_centre), bw, bh)] +=
-            q * n as f64;
+    for (i, q) in probs.iter().enumerate() {
+        expected[env_bin(&light, texel_dir(&light, i), bw, bh)] += q * n as f64;
     }
-    common::chi2_test("env rooitou_park", &observed, &expected, 1)
-        .unwrap_or_else(|e| panic!("{e}"));
+    let chi2 = |p: &Probe| {
+        let mut observed = vec![0.0; (bw * bh) as usize];
+        for (d, _) in p.env_samples(&light, n, 5).expect("env samples") {
+            observed[env_bin(&light, d, bw, bh)] += 1.0;
+        }
+        common::chi2_test("env rooitou_park", &observed, &expected, 1)
+    };
+    chi2(&p).unwrap_or_else(|e| panic!("{e}"));
+    p.set_bias(Some(most_balanced_axis(&light, &probs)));
+    let biased = chi2(&p);
+    assert!(
+        biased.is_err(),
+        "env rooitou_park: accepted a biased sampler: {biased:?}"
+    );
 }

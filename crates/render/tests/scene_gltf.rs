@@ -5,8 +5,18 @@ use std::path::{Path, PathBuf};
 use glam::{Mat4, Quat, Vec3};
 use lightfarm_render::scene::{shapes, write_glb, Camera, Material, Scene};
 
-const HEAD: &str = "/work/shared/assets/heads/LeePerrySmith/LeePerrySmith_textured.glb";
-const GLASSES: &str = "/work/shared/assets/accessories/SunglassesKhronos/SunglassesKhronos.glb";
+/// A file of the built-in asset pack; a missing one fails the test.
+fn asset(rel: &str) -> PathBuf {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets")
+        .join(rel);
+    assert!(
+        path.is_file(),
+        "{} is missing from the checkout: these tests read only files committed to the repository",
+        path.display()
+    );
+    path
+}
 
 fn scratch_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("lightfarm-scene-{name}-{}", std::process::id()));
@@ -66,11 +76,7 @@ fn check_consistent(scene: &Scene, what: &str) {
 
 #[test]
 fn loads_lee_perry_smith_head() {
-    if !Path::new(HEAD).exists() {
-        println!("skipping: {HEAD} is absent");
-        return;
-    }
-    let scene = Scene::load_gltf(Path::new(HEAD)).expect("head loads");
+    let scene = Scene::load_gltf(&asset("heads/LeePerrySmith_textured.glb")).expect("head loads");
     check_consistent(&scene, "head");
     assert!(
         !scene.textures.is_empty(),
@@ -92,11 +98,8 @@ fn loads_lee_perry_smith_head() {
 
 #[test]
 fn loads_sunglasses_with_transmissive_lenses() {
-    if !Path::new(GLASSES).exists() {
-        println!("skipping: {GLASSES} is absent");
-        return;
-    }
-    let scene = Scene::load_gltf(Path::new(GLASSES)).expect("sunglasses load");
+    let scene =
+        Scene::load_gltf(&asset("accessories/SunglassesKhronos.glb")).expect("sunglasses load");
     check_consistent(&scene, "sunglasses");
     for m in &scene.materials {
         println!(
@@ -142,20 +145,8 @@ fn malformed_files_are_errors_naming_the_path() {
 
     assert_err_names(&dir.join("does_not_exist.glb"));
 
-    // A truncated copy of a real file, or of one we write when the assets are absent.
-    let source = if Path::new(GLASSES).exists() {
-        std::fs::read(GLASSES).unwrap()
-    } else {
-        let full = dir.join("full.glb");
-        let mut s = Scene::default();
-        s.add_mesh_instance(
-            shapes::icosphere(1.0, 1),
-            Material::default(),
-            Mat4::IDENTITY,
-        );
-        write_glb(&s, &full).unwrap();
-        std::fs::read(&full).unwrap()
-    };
+    // A truncated copy of a real file.
+    let source = std::fs::read(asset("accessories/SunglassesKhronos.glb")).expect("read asset");
     let truncated = dir.join("truncated.glb");
     std::fs::write(&truncated, &source[..100]).unwrap();
     assert_err_names(&truncated);

@@ -8,29 +8,28 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use lightfarm_render::scene::{write_glb, Mesh, Scene, SceneError};
 
-const HEAD_FILE: &str = "mh_head_01_f_young_caucasian.glb";
-const SHARED_HEADS: &str = "/work/shared/assets/heads/makehuman_generated";
-
-/// The repository copy when present, else the shared asset store.
-fn head_path() -> Option<PathBuf> {
-    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/heads");
-    [
-        repo.join(HEAD_FILE),
-        Path::new(SHARED_HEADS).join(HEAD_FILE),
-    ]
-    .into_iter()
-    .find(|p| p.exists())
+/// A file of the repository, relative to this crate; a missing one fails the test.
+fn repo_file(rel: &str) -> PathBuf {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(rel);
+    assert!(
+        path.is_file(),
+        "{} is missing from the checkout: these tests read only files committed to the repository",
+        path.display()
+    );
+    path
 }
 
-/// The head's single mesh, or `None` (test skipped, loudly) where the asset is not installed.
-fn head() -> Option<Mesh> {
-    let Some(path) = head_path() else {
-        eprintln!("SKIP: {HEAD_FILE} found neither in assets/heads nor in {SHARED_HEADS}");
-        return None;
-    };
+/// The built-in MakeHuman head with 52 ARKit targets.
+fn head_path() -> PathBuf {
+    repo_file("../../assets/heads/mh_head_01_f_young_caucasian.glb")
+}
+
+/// The head's single mesh.
+fn head() -> Mesh {
+    let path = head_path();
     let scene = Scene::load_gltf(&path).expect("load head");
     assert_eq!(scene.meshes.len(), 1, "{}", path.display());
-    scene.meshes.into_iter().next()
+    scene.meshes.into_iter().next().expect("one mesh")
 }
 
 fn weights(pairs: &[(&str, f64)]) -> BTreeMap<String, f64> {
@@ -47,7 +46,7 @@ fn displacement(a: &Mesh, b: &Mesh) -> Vec<Vec3> {
 
 #[test]
 fn head_has_52_arkit_targets() {
-    let Some(mesh) = head() else { return };
+    let mesh = head();
     let names: Vec<&str> = mesh.morph_targets.iter().map(|t| t.name.as_str()).collect();
     println!("targets ({}): {names:?}", names.len());
     assert_eq!(names.len(), 52, "{names:?}");
@@ -67,7 +66,7 @@ fn head_has_52_arkit_targets() {
 
 #[test]
 fn empty_and_zero_weights_leave_geometry_bit_identical() {
-    let Some(base) = head() else { return };
+    let base = head();
     for w in [weights(&[]), weights(&[("jawOpen", 0.0)])] {
         let mut m = base.clone();
         m.apply_morphs(&w).expect("apply");
@@ -83,7 +82,7 @@ fn empty_and_zero_weights_leave_geometry_bit_identical() {
 
 #[test]
 fn jaw_open_moves_the_chin_down() {
-    let Some(base) = head() else { return };
+    let base = head();
     let mut m = base.clone();
     m.apply_morphs(&weights(&[("jawOpen", 1.0)]))
         .expect("apply");
@@ -142,7 +141,7 @@ fn blink_sides(base: &Mesh, target: &str) -> (usize, usize, f32) {
 /// rather than zero motion on the other side.
 #[test]
 fn eye_blink_left_moves_the_plus_x_side() {
-    let Some(base) = head() else { return };
+    let base = head();
     let (lp, ln, lx) = blink_sides(&base, "eyeBlinkLeft");
     let (rp, rn, rx) = blink_sides(&base, "eyeBlinkRight");
     assert!(lp + ln > 0, "eyeBlinkLeft moved nothing");
@@ -161,7 +160,7 @@ fn eye_blink_left_moves_the_plus_x_side() {
 
 #[test]
 fn morphed_normals_stay_unit_and_tangents_orthogonal() {
-    let Some(base) = head() else { return };
+    let base = head();
     let mut m = base.clone();
     m.apply_morphs(&weights(&[
         ("jawOpen", 1.0),
@@ -194,7 +193,7 @@ fn morphed_normals_stay_unit_and_tangents_orthogonal() {
 
 #[test]
 fn unknown_name_and_non_finite_weight_are_errors() {
-    let Some(base) = head() else { return };
+    let base = head();
     let mut m = base.clone();
     let err = m
         .apply_morphs(&weights(&[("jawOpne", 1.0)]))
@@ -219,7 +218,7 @@ fn unknown_name_and_non_finite_weight_are_errors() {
 
 #[test]
 fn weights_beyond_range_are_clamped_not_rejected() {
-    let Some(base) = head() else { return };
+    let base = head();
     let mut clamped = base.clone();
     clamped
         .apply_morphs(&weights(&[("jawOpen", 5.0)]))
@@ -232,10 +231,7 @@ fn weights_beyond_range_are_clamped_not_rejected() {
 
 #[test]
 fn morphed_head_round_trips_through_write_glb() {
-    let Some(path) = head_path() else {
-        eprintln!("SKIP: {HEAD_FILE} not installed");
-        return;
-    };
+    let path = head_path();
     let mut scene = Scene::load_gltf(&path).expect("load head");
     scene.meshes[0]
         .apply_morphs(&weights(&[("jawOpen", 0.5), ("eyeBlinkLeft", 1.0)]))
@@ -270,26 +266,22 @@ fn morphed_head_round_trips_through_write_glb() {
 }
 
 #[test]
-fn baked_jaw_open_expression_matches_when_comparable() {
-    let Some(base) = head() else { return };
-    let baked_path = Path::new(SHARED_HEADS).join("mh_head_01_f_young_caucasian__expr_jawopen.glb");
-    if !baked_path.exists() {
-        eprintln!("SKIP: {} not installed", baked_path.display());
-        return;
-    }
+fn baked_jaw_open_expression_matches_the_morph_target() {
+    let base = head();
+    // Baked by the asset generator (Python), independently of this crate: tests/data/LICENSES.md.
+    let baked_path = repo_file("tests/data/mh_head_01_f_young_caucasian__expr_jawopen.glb");
     let baked = Scene::load_gltf(&baked_path).expect("load baked expression");
-    let Some(baked) = baked.meshes.first() else {
-        eprintln!("SKIP: baked file has no mesh");
-        return;
-    };
-    if baked.positions.len() != base.positions.len() {
-        eprintln!(
-            "SKIP: baked file has {} vertices, morph head {}",
-            baked.positions.len(),
-            base.positions.len()
-        );
-        return;
-    }
+    assert_eq!(baked.meshes.len(), 1, "{}", baked_path.display());
+    let baked = &baked.meshes[0];
+    assert_eq!(
+        baked.positions.len(),
+        base.positions.len(),
+        "the baked file and the morph head must share a topology"
+    );
+    assert!(
+        baked.morph_targets.is_empty(),
+        "the baked file has no targets"
+    );
     // The baked file's asset.extras.baked_expression is {"jawOpen": 0.7}; scanning nearby
     // weights shows whether that is what was baked.
     let mut best = (f64::NAN, f32::INFINITY);
@@ -457,32 +449,49 @@ fn synthetic_out_of_range_sparse_index_is_an_error_not_a_panic() {
 
 #[test]
 fn every_makehuman_head_loads_with_52_targets() {
-    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/heads");
-    let dir = if repo.join(HEAD_FILE).exists() {
-        repo
-    } else {
-        PathBuf::from(SHARED_HEADS)
-    };
-    let Ok(entries) = std::fs::read_dir(&dir) else {
-        eprintln!("SKIP: {} not readable", dir.display());
-        return;
-    };
-    let mut heads: Vec<PathBuf> = entries
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with("mh_head_") && !n.contains("__expr_"))
-        })
+    // The generator's manifest lists the heads it made: each must be committed, load, carry
+    // 52 targets and the manifest's vertex count, and no other MakeHuman head may be there.
+    let manifest: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(repo_file("../../assets/heads/makehuman_manifest.json")).expect("read"),
+    )
+    .expect("manifest JSON");
+    let listed: Vec<&serde_json::Value> = manifest
+        .as_array()
+        .expect("the manifest is a list of heads")
+        .iter()
         .collect();
-    heads.sort();
-    for path in &heads {
-        let scene = Scene::load_gltf(path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(listed.len(), 8, "the built-in pack has 8 MakeHuman heads");
+    let mut files = Vec::new();
+    for entry in listed {
+        let file = entry["file"].as_str().expect("manifest entry has a file");
+        let path = repo_file(&format!("../../assets/heads/{file}"));
+        let scene = Scene::load_gltf(&path).unwrap_or_else(|e| panic!("{e}"));
         let mesh = &scene.meshes[0];
         assert_eq!(mesh.morph_targets.len(), 52, "{}", path.display());
+        let vertices = entry["vertices"].as_u64().expect("vertex count") as usize;
+        assert_eq!(
+            mesh.positions.len(),
+            vertices,
+            "{}: vertices loaded vs the manifest",
+            path.display()
+        );
         let mut m = mesh.clone();
         m.apply_morphs(&weights(&[("jawOpen", 1.0), ("eyeBlinkLeft", 1.0)]))
             .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert_ne!(
+            m.positions, mesh.positions,
+            "{}: morphs moved nothing",
+            file
+        );
+        files.push(file.to_string());
     }
-    println!("{} MakeHuman heads load with 52 targets", heads.len());
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/heads");
+    let mut present: Vec<String> = std::fs::read_dir(&dir)
+        .expect("assets/heads is readable")
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|n| n.starts_with("mh_head_") && n.ends_with(".glb"))
+        .collect();
+    present.sort();
+    files.sort();
+    assert_eq!(present, files, "assets/heads and the manifest disagree");
 }

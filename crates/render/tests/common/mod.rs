@@ -1,6 +1,8 @@
 //! Helpers shared by the render crate's device tests.
 #![allow(dead_code)]
 
+pub mod bsdf_ref;
+
 use std::sync::{Arc, OnceLock};
 
 use glam::{Mat4, Vec3};
