@@ -1,8 +1,15 @@
 //! `lightfarm render` end to end: a real render of the built-in head, and malformed inputs that
 //! must end in an error naming the bad file or flag, never a panic.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+
+use lightfarm_light::{EnvTransform, Hdri};
+use lightfarm_render::gpu_scene::pack_scene;
+use lightfarm_render::scene::{Camera, Scene};
+use lightfarm_render::vulkan::DeviceRequest;
+use lightfarm_render::{EnvLight, RenderOutput, RenderSettings, Renderer};
 
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -23,6 +30,64 @@ fn tmp(name: &str) -> PathBuf {
 
 fn asset(rel: &str) -> String {
     repo().join("assets").join(rel).display().to_string()
+}
+
+/// Renders in this process what the `lightfarm.spec` header attribute of `lightfarm render`'s
+/// output describes (scene, HDRIs with rotation and flip, camera, size, spp, seed, depth).
+fn render_from_spec(spec: &serde_json::Value) -> RenderOutput {
+    let f32s = |v: &serde_json::Value| -> glam::Vec3 {
+        let a: Vec<f32> = v
+            .as_array()
+            .expect("a 3-vector")
+            .iter()
+            .map(|x| x.as_f64().expect("a number") as f32)
+            .collect();
+        glam::Vec3::new(a[0], a[1], a[2])
+    };
+    let num = |k: &str| spec[k].as_u64().unwrap_or_else(|| panic!("spec.{k}")) as u32;
+    let scene = Scene::load_gltf(Path::new(spec["scene"].as_str().expect("scene"))).expect("scene");
+    let lights: Vec<EnvLight> = spec["hdri"]
+        .as_array()
+        .expect("hdri list")
+        .iter()
+        .map(|h| {
+            let path = h["path"].as_str().expect("hdri path");
+            EnvLight {
+                name: path.to_string(),
+                hdri: Hdri::load(Path::new(path)).expect("hdri"),
+                transform: EnvTransform {
+                    rotation_deg: h["rotation_deg"].as_f64().expect("rotation") as f32,
+                    flip: h["flip"].as_bool().expect("flip"),
+                },
+            }
+        })
+        .collect();
+    let c = &spec["camera"];
+    let camera = Camera {
+        position: f32s(&c["position"]),
+        forward: f32s(&c["forward"]),
+        up: f32s(&c["up"]),
+        yfov_deg: c["yfov_deg"].as_f64().expect("fov") as f32,
+    };
+    let settings = RenderSettings {
+        width: num("width"),
+        height: num("height"),
+        spp: num("spp"),
+        seed: num("seed"),
+        max_depth: num("max_depth"),
+        // Not in the spec: the CLI's fixed Russian-roulette depth.
+        rr_depth: 5,
+        camera,
+    };
+    Renderer::new(&DeviceRequest::Auto)
+        .expect("a Vulkan device")
+        .render(
+            &pack_scene(&scene).expect("pack"),
+            &lights,
+            &settings,
+            &mut |_| {},
+        )
+        .expect("render")
 }
 
 /// Runs a render that must fail; returns stderr after checking the failure is clean.
@@ -87,20 +152,60 @@ fn renders_the_head_with_two_lightings_stats_and_preview() {
     let img = exr::prelude::read_all_flat_layers_from_file(&out).expect("read exr back");
     let layer = &img.layer_data[0];
     assert_eq!((layer.size.0, layer.size.1), (32, 24));
-    let names: Vec<String> = layer
+    let channels: HashMap<String, Vec<f32>> = layer
         .channel_data
         .list
         .iter()
-        .map(|c| c.name.to_string())
+        .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect()))
         .collect();
-    for n in lightfarm_render::output::channel_names(2) {
-        assert!(names.contains(&n), "channel {n} missing from {names:?}");
-    }
-    let attrs = &layer.attributes.other;
-    assert!(
-        attrs.contains_key(&exr::prelude::Text::from("lightfarm.spec")),
-        "spec attribute missing"
+    let spec = match layer
+        .attributes
+        .other
+        .get(&exr::prelude::Text::from("lightfarm.spec"))
+    {
+        Some(exr::prelude::AttributeValue::Text(t)) => {
+            serde_json::from_str::<serde_json::Value>(&t.to_string()).expect("spec is JSON")
+        }
+        other => panic!("spec attribute missing or not text: {other:?}"),
+    };
+    // The header's spec is enough to render the same passes again in this process, and the
+    // file must hold exactly those passes, each channel under its own name.
+    let rendered = render_from_spec(&spec);
+    assert_ne!(
+        rendered.lit[0], rendered.lit[1],
+        "two lightings, two images"
     );
+    assert!(
+        rendered.mask.iter().any(|m| *m > 0.5),
+        "the head is in view"
+    );
+    let rgb = |v: &[[f32; 3]], k: usize| v.iter().map(|p| p[k]).collect::<Vec<f32>>();
+    let mut expected: Vec<(String, Vec<f32>)> = Vec::new();
+    for (l, lit) in rendered.lit.iter().enumerate() {
+        for (k, c) in ["R", "G", "B"].iter().enumerate() {
+            expected.push((format!("lit{l}.{c}"), rgb(lit, k)));
+        }
+    }
+    for (k, c) in ["R", "G", "B"].iter().enumerate() {
+        expected.push((format!("albedo.{c}"), rgb(&rendered.albedo, k)));
+    }
+    for (k, c) in ["X", "Y", "Z"].iter().enumerate() {
+        expected.push((format!("normal.{c}"), rgb(&rendered.normal, k)));
+        expected.push((format!("normal_lens.{c}"), rgb(&rendered.normal_lens, k)));
+    }
+    expected.push(("mask.A".into(), rendered.mask.clone()));
+    assert_eq!(channels.len(), expected.len(), "{:?}", channels.keys());
+    for (name, want) in &expected {
+        let got = channels
+            .get(name)
+            .unwrap_or_else(|| panic!("channel {name} missing from {:?}", channels.keys()));
+        let same = got.len() == want.len()
+            && got
+                .iter()
+                .zip(want)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+        assert!(same, "channel {name} differs from the rendered pass");
+    }
     let png = image::open(&preview).expect("preview png");
     assert_eq!((png.width(), png.height()), (32, 24));
 }

@@ -65,14 +65,80 @@ fn bad_specs_and_indices_name_the_key() {
             "{key}: {err}"
         );
     }
-    let o = run(&["spec", "expand", &example(), "--index", "1000"]);
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--index"));
-    let o = run(&["spec", "expand", "/no/such/spec.toml", "--index", "0"]);
-    assert!(String::from_utf8_lossy(&o.stderr).contains("/no/such/spec.toml"));
+    for (args, needle) in [
+        (
+            vec!["spec", "expand", &example(), "--index", "1000"],
+            "--index",
+        ),
+        (
+            vec!["spec", "expand", "/no/such/spec.toml", "--index", "0"],
+            "/no/such/spec.toml",
+        ),
+    ] {
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(o.stdout.is_empty(), "{args:?} printed a sample");
+        assert!(
+            err.contains(needle) && !err.contains("panicked"),
+            "{args:?}: {err}"
+        );
+    }
 }
 
 #[test]
 fn builtin_assets_verify() {
     let o = run(&["assets", "verify"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("assets verified"), "{text}");
+}
+
+/// A copy of the catalog whose files are links to the built-in ones except one, which is a
+/// copy with a single byte changed: verification must fail and name that asset.
+#[test]
+fn assets_verify_refuses_a_corrupted_copy() {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets");
+    let dir = tempfile::tempdir().expect("tmp");
+    std::fs::copy(repo.join("catalog.toml"), dir.path().join("catalog.toml")).expect("copy");
+    let catalog: toml::Value =
+        toml::from_str(&std::fs::read_to_string(repo.join("catalog.toml")).expect("read"))
+            .expect("catalog TOML");
+    let paths: Vec<&str> = catalog["asset"]
+        .as_array()
+        .expect("[[asset]] tables")
+        .iter()
+        .map(|a| a["path"].as_str().expect("path"))
+        .collect();
+    let victim = "hdri/venice_sunset_1k.hdr";
+    assert!(
+        paths.contains(&victim),
+        "{victim} is no longer in the catalog"
+    );
+    for rel in &paths {
+        let (from, to) = (repo.join(rel), dir.path().join(rel));
+        std::fs::create_dir_all(to.parent().expect("parent")).expect("mkdir");
+        if *rel == victim {
+            let mut bytes = std::fs::read(&from).expect("read");
+            let mid = bytes.len() / 2;
+            bytes[mid] ^= 0x01;
+            std::fs::write(&to, bytes).expect("write");
+        } else {
+            std::os::unix::fs::symlink(&from, &to).expect("link");
+        }
+    }
+    let cat = dir.path().join("catalog.toml");
+    let good = run(&["assets", "list", "--catalog", cat.to_str().expect("utf8")]);
+    assert!(
+        good.status.success(),
+        "{}",
+        String::from_utf8_lossy(&good.stderr)
+    );
+    let o = run(&["assets", "verify", "--catalog", cat.to_str().expect("utf8")]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("venice_sunset") && !err.contains("panicked"),
+        "the error must name the corrupted asset: {err}"
+    );
 }
