@@ -361,6 +361,17 @@ impl SampleIndex {
         }
     }
 
+    /// Number of committed samples of every job together. Reads one counter per job rather
+    /// than the records, so it stays cheap however many samples there are.
+    pub fn total_count(&self) -> Result<u64, StoreError> {
+        let mut total = 0u64;
+        for item in self.counts.iter() {
+            let (_, v) = item?;
+            total = total.saturating_add(decode_u64(&v, "a job's count")?);
+        }
+        Ok(total)
+    }
+
     /// Sequence of the newest commit, 0 if none.
     pub fn latest_sequence(&self) -> u64 {
         *self.latest.borrow()

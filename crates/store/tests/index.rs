@@ -68,6 +68,16 @@ fn sequences_increase_across_jobs() {
     assert_eq!(idx.count("b").expect("count"), 2);
     assert_eq!(idx.count("c").expect("count"), 1);
     assert_eq!(idx.count("none").expect("count"), 0);
+    // The total over jobs (the coordinator's committed-samples counter starts from it) counts
+    // each sample once, re-uploads included, and survives a reopen.
+    commit(&idx, "a", 9, "train");
+    assert_eq!(idx.total_count().expect("total"), 5);
+    drop(idx);
+    db.flush().expect("flush");
+    drop(db);
+    let db = open_db(dir.path());
+    let idx = SampleIndex::open(&db).expect("reopen");
+    assert_eq!(idx.total_count().expect("total"), 5);
 }
 
 #[test]

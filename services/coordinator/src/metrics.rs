@@ -9,6 +9,8 @@ use crate::scheduler::Scheduler;
 pub struct Metrics {
     pub registry: Registry,
     pub leased: IntCounter,
+    /// Starts at the sample index's count when the coordinator opens (see
+    /// `Coordinator::open`), so a restart does not reset it and `rate()` sees no reset either.
     pub committed: IntCounter,
     pub duplicate_uploads: IntCounter,
     pub rejected_uploads: IntCounter,
@@ -61,7 +63,7 @@ impl Metrics {
             committed: counter(
                 &registry,
                 "lightfarm_samples_committed_total",
-                "Samples committed",
+                "Samples committed in this data directory, across coordinator restarts",
             ),
             duplicate_uploads: counter(
                 &registry,

@@ -112,6 +112,10 @@ impl Coordinator {
         let size = blobs.size(&catalog_blake3)?.unwrap_or(0);
         assets.insert(catalog_blake3.clone(), size);
         let samples = SampleIndex::open(&db)?;
+        let metrics = Metrics::new();
+        // The index is the authority on what was committed; a process counter starting at 0
+        // would make the total disagree with the data after every restart.
+        metrics.committed.inc_by(samples.total_count()?);
         let scheduler = Arc::new(Scheduler::open(
             &db,
             config.catalog.clone(),
@@ -122,7 +126,7 @@ impl Coordinator {
         let shared = Arc::new(Shared {
             scheduler,
             blobs,
-            metrics: Arc::new(Metrics::new()),
+            metrics: Arc::new(metrics),
             max_upload_bytes: config.max_upload_bytes,
             heartbeat_seconds: config.heartbeat_seconds,
             assets,

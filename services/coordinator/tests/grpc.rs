@@ -1,8 +1,8 @@
 //! The coordinator over gRPC on an ephemeral port, in process: a dataset rendered by two
-//! in-process workers is committed exactly once and exports readably; bad input gets clear
-//! status codes and leaves nothing half-written.
+//! in-process workers is committed exactly once and exports EXRs holding exactly the rendered
+//! passes; bad input gets clear status codes and leaves nothing half-written.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use lightfarm_coordinator::{Coordinator, CoordinatorConfig};
 use lightfarm_proto::v1 as pb;
@@ -55,11 +55,16 @@ async fn start(configure: impl FnOnce(&std::path::Path, &mut CoordinatorConfig))
         .await
         .expect("bind");
     let metrics_addr = metrics_listener.local_addr().expect("addr");
-    tokio::spawn(lightfarm_coordinator::metrics::serve_metrics(
+    // /metrics stops with the gRPC server: its handle on the scheduler keeps the sled db (and
+    // its lock) open, and a test reopens the data directory after `handle` finishes.
+    let (metrics_stop, metrics_stopped) = tokio::sync::oneshot::channel::<()>();
+    let metrics_server = tokio::spawn(lightfarm_coordinator::metrics::serve_metrics(
         metrics_listener,
         coordinator.metrics().clone(),
         coordinator.scheduler().clone(),
-        std::future::pending(),
+        async {
+            let _ = metrics_stopped.await;
+        },
     ));
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
     let handle = tokio::spawn(async move {
@@ -69,6 +74,11 @@ async fn start(configure: impl FnOnce(&std::path::Path, &mut CoordinatorConfig))
             })
             .await
             .expect("serve");
+        let _ = metrics_stop.send(());
+        metrics_server
+            .await
+            .expect("metrics join")
+            .expect("metrics server");
     });
     Running {
         addr,
@@ -97,6 +107,102 @@ fn clients(
         pb::samples_client::SamplesClient::with_interceptor(ch, auth)
             .max_decoding_message_size(64 << 20),
     )
+}
+
+/// Opens the coordinator of `data_dir` again. The stopped one's aborted background tasks let go
+/// of the sled lock a moment after `serve` returns, so opening is retried for a while.
+async fn reopen(data_dir: &std::path::Path) -> Coordinator {
+    let catalog = Catalog::builtin().expect("catalog");
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        let config = CoordinatorConfig::new(data_dir.to_path_buf(), TOKEN.into(), catalog.clone());
+        let opened = tokio::task::spawn_blocking(move || Coordinator::open(config))
+            .await
+            .expect("join");
+        match opened {
+            Ok(c) => return c,
+            Err(_) if Instant::now() < deadline => {
+                tokio::time::sleep(Duration::from_millis(100)).await
+            }
+            Err(e) => panic!("reopening {}: {e}", data_dir.display()),
+        }
+    }
+}
+
+/// Renders sample `index` of `SPEC` in this process, as a worker would.
+fn render_here(
+    renderer: &lightfarm_render::Renderer,
+    catalog: &Catalog,
+    resolved: &lightfarm_scene::spec::ResolvedSpec,
+    index: u64,
+) -> lightfarm_render::RenderOutput {
+    let sample = lightfarm_scene::expand::expand(resolved, index).expect("expand");
+    let assembled = lightfarm_subject::assemble(&sample, catalog).expect("assemble");
+    lightfarm_subject::render::render_sample(renderer, &assembled, &mut |_| {}).expect("render")
+}
+
+/// Decodes `exr` with the exr crate alone, channel by channel by name, and asserts that the
+/// channels are exactly the passes of `want` and every value is bit-identical. Nothing of
+/// lightfarm's own EXR code is involved, so a writer that swapped or mislabelled a pass (or
+/// wrote it at lower precision) fails here.
+fn assert_exr_holds(exr: &[u8], want: &lightfarm_render::RenderOutput, what: &str) {
+    use exr::prelude::{FlatSamples, ReadChannels, ReadLayers};
+    let img = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(exr))
+        .expect("decodes as EXR");
+    assert_eq!(img.layer_data.len(), 1, "{what}: one layer");
+    let layer = &img.layer_data[0];
+    let (w, h) = (want.width as usize, want.height as usize);
+    assert_eq!((layer.size.0, layer.size.1), (w, h), "{what}: size");
+    let got: std::collections::BTreeMap<String, &Vec<f32>> = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| match &c.sample_data {
+            FlatSamples::F32(v) => (c.name.to_string(), v),
+            _ => panic!("{what}: channel {} is not 32-bit float", c.name),
+        })
+        .collect();
+    let mut expected: Vec<(String, Vec<f32>)> = Vec::new();
+    let mut split3 = |layer: &str, names: [&str; 3], px: &[[f32; 3]]| {
+        for (k, n) in names.iter().enumerate() {
+            expected.push((format!("{layer}.{n}"), px.iter().map(|p| p[k]).collect()));
+        }
+    };
+    for (l, lit) in want.lit.iter().enumerate() {
+        split3(&format!("lit{l}"), ["R", "G", "B"], lit);
+    }
+    split3("albedo", ["R", "G", "B"], &want.albedo);
+    split3("normal", ["X", "Y", "Z"], &want.normal);
+    split3("normal_lens", ["X", "Y", "Z"], &want.normal_lens);
+    expected.push(("mask.A".into(), want.mask.clone()));
+
+    let mut names: Vec<&String> = expected.iter().map(|(n, _)| n).collect();
+    names.sort();
+    assert_eq!(
+        got.keys().collect::<Vec<_>>(),
+        names,
+        "{what}: channel names"
+    );
+    for (name, values) in &expected {
+        assert_eq!(values.len(), w * h, "{what}: {name} rendered size");
+        let decoded = got[name];
+        assert_eq!(decoded.len(), w * h, "{what}: {name} decoded size");
+        if let Some(i) = (0..w * h).find(|&i| decoded[i].to_bits() != values[i].to_bits()) {
+            panic!(
+                "{what}: {name} at pixel ({}, {}) is {} in the EXR, {} rendered",
+                i % w,
+                i / w,
+                decoded[i],
+                values[i]
+            );
+        }
+    }
 }
 
 async fn submit(jobs: &mut pb::jobs_client::JobsClient<Authed>, spec: &str) -> pb::Job {
@@ -209,39 +315,33 @@ async fn a_dataset_renders_commits_once_and_exports() {
     let back = lightfarm_store::read_export(&out).expect("read export");
     assert_eq!(back.len(), 6);
     for s in &back {
-        use exr::prelude::{ReadChannels, ReadLayers};
-        let img = exr::prelude::read()
-            .no_deep_data()
-            .largest_resolution_level()
-            .all_channels()
-            .all_layers()
-            .all_attributes()
-            .from_buffered(std::io::Cursor::new(&s.exr))
-            .expect("decodes as EXR");
-        let layer = &img.layer_data[0];
-        assert_eq!(layer.size.width(), 16);
-        let names: Vec<String> = layer
-            .channel_data
-            .list
-            .iter()
-            .map(|c| c.name.to_string())
-            .collect();
-        for want in [
-            "lit0.R",
-            "lit1.B",
-            "albedo.G",
-            "normal.Z",
-            "normal_lens.X",
-            "mask.A",
-        ] {
-            assert!(
-                names.iter().any(|n| n == want),
-                "{want} missing in {names:?}"
-            );
-        }
         assert_eq!(s.json["index"], s.index);
         assert!(s.json["sample"]["head"]["blake3"].is_string());
     }
+    // Every exported EXR holds exactly what rendering its sample here gives.
+    tokio::task::spawn_blocking(move || {
+        let catalog = Catalog::builtin().expect("catalog");
+        let resolved = lightfarm_scene::spec::DatasetSpec::from_toml_str(SPEC, "grpc-test.toml")
+            .and_then(|s| s.validate(&catalog))
+            .expect("spec");
+        let renderer =
+            lightfarm_render::Renderer::new(&lightfarm_render::vulkan::DeviceRequest::Auto)
+                .expect("device");
+        for s in &back {
+            let want = render_here(&renderer, &catalog, &resolved, s.index);
+            let what = format!("sample {}", s.index);
+            // Non-trivial, so equality cannot hold between two empty images.
+            assert!(
+                want.mask.iter().any(|&m| m > 0.0),
+                "{what}: subject in view"
+            );
+            assert_eq!(want.lit.len(), 2, "{what}: two lightings");
+            assert_ne!(want.lit[0], want.lit[1], "{what}: lightings differ");
+            assert_exr_holds(&s.exr, &want, &what);
+        }
+    })
+    .await
+    .expect("pixel check");
 
     // Prometheus text on /metrics reflects the job.
     let text = http_get(c.metrics_addr, "/metrics").await;
@@ -256,6 +356,16 @@ async fn a_dataset_renders_commits_once_and_exports() {
 
     let _ = c.stop.take().map(|s| s.send(()));
     c.handle.await.expect("server");
+
+    // The committed total counts this data directory, not this process: a restarted
+    // coordinator starts where the last one stopped.
+    let reopened = reopen(&c.dir.path().join("data")).await;
+    assert_eq!(reopened.metrics().committed.get(), 6, "after a reopen");
+    let text = reopened.metrics().render(reopened.scheduler());
+    assert!(
+        text.contains("lightfarm_samples_committed_total 6"),
+        "after a reopen:\n{text}"
+    );
 }
 
 /// A minimal HTTP/1.1 GET (the test needs no HTTP client crate).
