@@ -10,6 +10,37 @@ fn run(args: &[&str], dir: &std::path::Path) -> Output {
         .expect("run lightfarm")
 }
 
+/// The `mask.A` channel of a sample EXR, read independently of the trainer's decoder.
+fn exr_mask(bytes: &[u8]) -> (u32, u32, Vec<f32>) {
+    use exr::prelude::{ReadChannels, ReadLayers};
+    let img = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .expect("a readable sample EXR");
+    let layer = &img.layer_data;
+    let mask = layer
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name.to_string() == "mask.A")
+        .expect("a mask.A channel")
+        .sample_data
+        .values_as_f32()
+        .collect();
+    (layer.size.width() as u32, layer.size.height() as u32, mask)
+}
+
+/// Whether (x, y) lies in the light-ball inset `Relighting::with_inset` draws at the bottom
+/// right: balls of max(min(w, h)/5, 8) px side by side, when 2·ball ≤ w and ball ≤ h.
+fn in_inset(w: u32, h: u32, x: u32, y: u32) -> bool {
+    let ball = (w.min(h) / 5).max(8);
+    2 * ball <= w && ball <= h && x >= w - 2 * ball && y >= h - ball
+}
+
 fn example() -> String {
     format!("{}/../../examples/dataset.toml", env!("CARGO_MANIFEST_DIR"))
 }
@@ -117,13 +148,94 @@ fn demo_renders_exports_and_draws_a_sheet() {
     assert!(samples
         .iter()
         .all(|s| !s.exr.is_empty() && s.json["sample"]["index"] == s.index));
-    assert!(dir.path().join("demo/sheet.png").is_file());
-    // Then it trained, relit a sample and scored the model.
-    assert!(dir.path().join("demo/train/checkpoints/latest").is_file());
-    assert!(dir.path().join("demo/relit.png").is_file());
+    let mut samples = samples;
+    samples.sort_by_key(|s| s.index);
+
+    // The sheet: six 16 px tile columns with 2 px gaps; a header line, then a caption line
+    // and a row of tiles per sample, in index order. Its mask tiles are the samples' masks as
+    // 8-bit grey, (m·255 + 0.5) truncated.
+    let sheet = image::open(dir.path().join("demo/sheet.png"))
+        .expect("sheet.png")
+        .to_rgb8();
+    assert_eq!(
+        (sheet.width(), sheet.height()),
+        (6 * (16 + 2) + 2, 12 + 3 * (12 + 16 + 2) + 2)
+    );
+    for (row, s) in samples.iter().enumerate() {
+        let (w, h, mask) = exr_mask(&s.exr);
+        assert_eq!((w, h), (16, 16));
+        let (x0, y0) = (2 + 5 * (16 + 2), 12 + row as u32 * (12 + 16 + 2) + 12);
+        for y in 0..h {
+            for x in 0..w {
+                let m = mask[(y * w + x) as usize];
+                let grey = (m.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+                assert_eq!(
+                    sheet.get_pixel(x0 + x, y0 + y).0,
+                    [grey; 3],
+                    "sample {} mask tile at ({x}, {y})",
+                    s.index
+                );
+            }
+        }
+    }
+
+    // Then it trained: `latest` names the final step's complete checkpoint.
+    let checkpoints = dir.path().join("demo/train/checkpoints");
+    let latest = std::fs::read_to_string(checkpoints.join("latest")).expect("checkpoints/latest");
+    assert_eq!(latest.trim(), "step-000000003");
+    let model = checkpoints.join(latest.trim()).join("model.safetensors");
+    let size = std::fs::metadata(&model)
+        .unwrap_or_else(|e| panic!("{}: {e}", model.display()))
+        .len();
+    assert!(size > 0, "{} is empty", model.display());
+
+    // It relit the first test-split sample (else the first): black off its mask outside the
+    // light-ball inset, not black all over the subject.
+    let entries = lightfarm_store::list_export_folder(&dir.path().join("demo/dataset"))
+        .expect("export listing");
+    let entry = entries
+        .iter()
+        .find(|e| e.split == "test")
+        .or(entries.first())
+        .expect("an exported sample");
+    let relit_sample = samples
+        .iter()
+        .find(|s| s.index == entry.index)
+        .expect("the relit sample is exported");
+    let (w, h, mask) = exr_mask(&relit_sample.exr);
+    let relit = image::open(dir.path().join("demo/relit.png"))
+        .expect("relit.png")
+        .to_rgb8();
+    assert_eq!((relit.width(), relit.height()), (w, h));
+    let mut subject_lit = false;
+    for y in 0..h {
+        for x in 0..w {
+            if in_inset(w, h, x, y) {
+                continue;
+            }
+            let p = relit.get_pixel(x, y).0;
+            if mask[(y * w + x) as usize] == 0.0 {
+                assert_eq!(p, [0, 0, 0], "relit.png at ({x}, {y}) is off the mask");
+            } else {
+                subject_lit |= p != [0, 0, 0];
+            }
+        }
+    }
+    assert!(subject_lit, "the relit subject is black everywhere");
+
+    // And scored the model: the input row and the model's, with finite metrics.
     let eval: serde_json::Value = serde_json::from_slice(
         &std::fs::read(dir.path().join("demo/eval.json")).expect("eval.json"),
     )
     .expect("eval json");
-    assert_eq!(eval.as_array().map(Vec::len), Some(2), "{eval}");
+    let rows = eval.as_array().expect("an array of rows");
+    assert_eq!(rows.len(), 2, "{eval}");
+    for row in rows {
+        for key in ["mae", "mse", "ssim"] {
+            assert!(
+                row[key].as_f64().is_some_and(f64::is_finite),
+                "{key} of {row}"
+            );
+        }
+    }
 }

@@ -58,6 +58,42 @@ fn write_config(dir: &Path, name: &str, steps: u64) -> PathBuf {
     path
 }
 
+/// The `mask.A` channel of a sample EXR, read independently of the trainer's decoder.
+fn exr_mask(path: &Path) -> (usize, usize, Vec<f32>) {
+    use exr::prelude::{ReadChannels, ReadLayers};
+    let img = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .expect("a readable sample EXR");
+    let layer = &img.layer_data;
+    let mask = layer
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name.to_string() == "mask.A")
+        .expect("a mask.A channel")
+        .sample_data
+        .values_as_f32()
+        .collect();
+    (layer.size.width(), layer.size.height(), mask)
+}
+
+/// Whether (x, y) lies in the light-ball inset `Relighting::with_inset` draws at the bottom
+/// right: balls of max(min(w, h)/5, 8) px side by side, when 2·ball ≤ w and ball ≤ h.
+fn in_inset(w: u32, h: u32, x: u32, y: u32) -> bool {
+    let ball = (w.min(h) / 5).max(8);
+    2 * ball <= w && ball <= h && x >= w - 2 * ball && y >= h - ball
+}
+
+/// Pixel positions of a `w × h` image in row-major order.
+fn positions(w: u32, h: u32) -> impl Iterator<Item = (u32, u32)> {
+    (0..h).flat_map(move |y| (0..w).map(move |x| (x, y)))
+}
+
 fn losses(run: &Path) -> Vec<serde_json::Value> {
     std::fs::read_to_string(run.join("losses.jsonl"))
         .unwrap_or_default()
@@ -97,6 +133,7 @@ fn a_run_killed_with_sigkill_resumes_the_same_loss_curve() {
         losses(&tmp.path().join("straight")),
         losses(&tmp.path().join("killed")),
     );
+    assert_eq!(a.len(), 20, "one line per step in the straight run");
     assert_eq!(b.len(), 20, "one line per step after the resume");
     for (x, y) in a.iter().zip(&b) {
         assert_eq!(x["step"], y["step"]);
@@ -122,27 +159,97 @@ fn relight_and_eval_write_what_they_promise() {
         .find(|p| p.extension().is_some_and(|e| e == "exr"))
         .expect("an exr");
 
-    // A sample EXR, relit under a catalog HDRI.
-    let out = tmp.path().join("relit.png");
-    let r = run(&[
-        "relight",
-        "--model",
-        m,
-        "--image",
-        exr.to_str().expect("utf8"),
-        "--hdri",
-        "studio_small_03",
-        "--out",
-        out.to_str().expect("utf8"),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    let img = image::open(&out).expect("png").to_rgb8();
-    assert_eq!((img.width(), img.height()), (16, 16));
-    for side in ["normal", "normal_lens", "albedo", "diffuse", "specular"] {
+    // A sample EXR, relit under two catalog HDRIs.
+    let relight_exr = |hdri: &str, name: &str| -> PathBuf {
+        let out = tmp.path().join(format!("{name}.png"));
+        let r = run(&[
+            "relight",
+            "--model",
+            m,
+            "--image",
+            exr.to_str().expect("utf8"),
+            "--hdri",
+            hdri,
+            "--out",
+            out.to_str().expect("utf8"),
+        ]);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        out
+    };
+    let studio = relight_exr("studio_small_03", "relit");
+    let sunset = relight_exr("venice_sunset", "sunset");
+    let (w, h, mask) = exr_mask(&exr);
+    assert_eq!((w, h), (16, 16));
+    let (w, h) = (w as u32, h as u32);
+    let open = |p: &Path| {
+        let img = image::open(p)
+            .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+            .to_rgb8();
+        assert_eq!((img.width(), img.height()), (w, h), "{}", p.display());
+        img
+    };
+    let side = |name: &str, s: &str| tmp.path().join(format!("{name}_{s}.png"));
+    let (a, b) = (open(&studio), open(&sunset));
+    let subject: Vec<(u32, u32)> = positions(w, h)
+        .filter(|&(x, y)| mask[(y * w + x) as usize] > 0.0 && !in_inset(w, h, x, y))
+        .collect();
+    assert!(
+        !subject.is_empty(),
+        "the sample has subject pixels outside the inset"
+    );
+    for img in [&a, &b] {
+        // The relit image is the network's output times the mask: black off the subject.
+        for (x, y) in positions(w, h) {
+            if mask[(y * w + x) as usize] == 0.0 && !in_inset(w, h, x, y) {
+                assert_eq!(
+                    img.get_pixel(x, y).0,
+                    [0, 0, 0],
+                    "({x}, {y}) is off the mask"
+                );
+            }
+        }
         assert!(
-            tmp.path().join(format!("relit_{side}.png")).is_file(),
-            "{side}"
+            subject
+                .iter()
+                .any(|&(x, y)| img.get_pixel(x, y).0 != [0, 0, 0]),
+            "the relit subject is all black"
         );
+    }
+    assert!(
+        subject
+            .iter()
+            .any(|&(x, y)| a.get_pixel(x, y).0 != b.get_pixel(x, y).0),
+        "two HDRIs relit the subject identically"
+    );
+    // The intermediates are not masked: f_N and f_A see the input alone, so normals and
+    // albedo are the same under either HDRI (to a PNG rounding step), while the light maps
+    // looked up with those normals are the HDRIs'.
+    let differs = |s: &str| {
+        let (x, y) = (open(&side("relit", s)), open(&side("sunset", s)));
+        x.pixels()
+            .zip(y.pixels())
+            .map(|(p, q)| (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap_or(0))
+            .max()
+            .unwrap_or(0)
+    };
+    for s in ["normal", "normal_lens", "albedo"] {
+        assert!(differs(s) <= 1, "{s} changed with the HDRI");
+    }
+    for s in ["diffuse", "specular"] {
+        assert!(differs(s) > 1, "{s} did not change with the HDRI");
+    }
+    // Normal PNGs hold (n + 1)/2 of unit vectors, everywhere (the networks' normals are
+    // normalised before any mask applies); rounding three components to 8 bits moves |n| by
+    // at most √3/255 ≈ 0.007.
+    for s in ["normal", "normal_lens"] {
+        for p in open(&side("relit", s)).pixels() {
+            let len =
+                p.0.iter()
+                    .map(|&v| (f32::from(v) / 255.0 * 2.0 - 1.0).powi(2))
+                    .sum::<f32>()
+                    .sqrt();
+            assert!((len - 1.0).abs() < 0.01, "{s}: |n| = {len} at {p:?}");
+        }
     }
 
     // A plain PNG portrait with a mask, 20×12 (not a multiple of the UNet's 4: padded).
@@ -176,8 +283,19 @@ fn relight_and_eval_write_what_they_promise() {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let img = image::open(&out2).expect("png").to_rgb8();
     assert_eq!((img.width(), img.height()), (20, 12));
-    // Masked-out columns stay black (the inset is at the bottom right).
-    assert!((0..5).all(|x| img.get_pixel(x, 0).0 == [0, 0, 0]));
+    // Masked-out columns stay black outside the inset (it covers x >= 4, y >= 4 here).
+    for (x, y) in positions(20, 12).filter(|&(x, y)| x <= 4 && !in_inset(20, 12, x, y)) {
+        assert_eq!(
+            img.get_pixel(x, y).0,
+            [0, 0, 0],
+            "({x}, {y}) is off the mask"
+        );
+    }
+    assert!(
+        positions(20, 12)
+            .any(|(x, y)| x > 4 && !in_inset(20, 12, x, y) && img.get_pixel(x, y).0 != [0, 0, 0]),
+        "the relit subject is all black"
+    );
 
     // eval: the input row and one per model.
     let json = tmp.path().join("eval.json");
@@ -202,7 +320,16 @@ fn relight_and_eval_write_what_they_promise() {
     );
     let rows: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("json");
-    assert_eq!(rows.as_array().map(Vec::len), Some(3));
+    let rows = rows.as_array().expect("an array of rows");
+    assert_eq!(rows.len(), 3);
+    for row in rows {
+        for key in ["mae", "mse", "ssim"] {
+            assert!(
+                row[key].as_f64().is_some_and(f64::is_finite),
+                "{key} of {row}"
+            );
+        }
+    }
 }
 
 #[test]

@@ -97,29 +97,71 @@ async fn submit_watch_checkpoints_and_relight() {
     })
     .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
     .unwrap();
-    let r = c
-        .relight(pb::RelightRequest {
-            job_id: job.id.clone(),
-            image: png.clone(),
-            mask: Vec::new(),
-            lighting: Some(pb::relight_request::Lighting::HdriId("rooitou_park".into())),
-            rotation_deg: 45.0,
-            flip: false,
-        })
+    let relight = |hdri: &str| pb::RelightRequest {
+        job_id: job.id.clone(),
+        image: png.clone(),
+        mask: Vec::new(),
+        lighting: Some(pb::relight_request::Lighting::HdriId(hdri.into())),
+        rotation_deg: 45.0,
+        flip: false,
+    };
+    let park = c
+        .relight(relight("rooitou_park"))
         .await
         .unwrap()
         .into_inner();
-    assert_eq!((r.width, r.height), (24, 16));
-    for bytes in [
-        &r.relit_png,
-        &r.normal_png,
-        &r.albedo_png,
-        &r.diffuse_png,
-        &r.specular_png,
-    ] {
-        let img = image::load_from_memory(bytes).unwrap();
-        assert_eq!((img.width(), img.height()), (24, 16));
+    let studio = c
+        .relight(relight("studio_small_03"))
+        .await
+        .unwrap()
+        .into_inner();
+    for r in [&park, &studio] {
+        assert_eq!((r.width, r.height), (24, 16));
+        for bytes in [
+            &r.relit_png,
+            &r.normal_png,
+            &r.albedo_png,
+            &r.diffuse_png,
+            &r.specular_png,
+        ] {
+            let img = image::load_from_memory(bytes).expect("a PNG");
+            assert_eq!((img.width(), img.height()), (24, 16));
+        }
     }
+    // Without a mask the request image's alpha is the mask (0 for x <= 3). The relit image is
+    // the network's output times the mask, so those columns are black, except where the
+    // light-ball inset is drawn: balls of max(min(24, 16)/5, 8) = 8 px at the bottom right,
+    // x >= 8, y >= 8.
+    let in_inset = |x: u32, y: u32| x >= 8 && y >= 8;
+    let decode = |bytes: &[u8]| image::load_from_memory(bytes).expect("relit PNG").to_rgb8();
+    let (a, b) = (decode(&park.relit_png), decode(&studio.relit_png));
+    let subject: Vec<(u32, u32)> = (0..16)
+        .flat_map(|y| (4..24).map(move |x| (x, y)))
+        .filter(|&(x, y)| !in_inset(x, y))
+        .collect();
+    for img in [&a, &b] {
+        for y in 0..16 {
+            for x in 0..4 {
+                assert_eq!(
+                    img.get_pixel(x, y).0,
+                    [0, 0, 0],
+                    "({x}, {y}) is off the mask"
+                );
+            }
+        }
+        assert!(
+            subject
+                .iter()
+                .any(|&(x, y)| img.get_pixel(x, y).0 != [0, 0, 0]),
+            "the relit subject is all black"
+        );
+    }
+    assert!(
+        subject
+            .iter()
+            .any(|&(x, y)| a.get_pixel(x, y) != b.get_pixel(x, y)),
+        "two HDRIs relit the subject identically"
+    );
 
     // Refusals.
     let err = c

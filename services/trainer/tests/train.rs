@@ -94,8 +94,10 @@ fn both_render_nets_overfit_four_samples() {
         rows[1].mse,
         rows[0].mse
     );
+    // The ablation's bar is looser than the paper's net's, but not "any improvement": it
+    // measured 0.055 vs 0.079 (0.70x) at 150 steps.
     assert!(
-        rows[2].mae < input,
+        rows[2].mae < 0.8 * input,
         "blackbox: relit MAE {} vs input {input}",
         rows[2].mae
     );
