@@ -1,6 +1,10 @@
 //! `lightfarm preview` and `lightfarm demo` end to end through the real binary.
 
+mod common;
+
 use std::process::{Command, Output};
+
+use common::{assert_relit_masked, sample_mask};
 
 fn run(args: &[&str], dir: &std::path::Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_lightfarm"))
@@ -8,37 +12,6 @@ fn run(args: &[&str], dir: &std::path::Path) -> Output {
         .current_dir(dir)
         .output()
         .expect("run lightfarm")
-}
-
-/// The `mask.A` channel of a sample EXR, read independently of the trainer's decoder.
-fn exr_mask(bytes: &[u8]) -> (u32, u32, Vec<f32>) {
-    use exr::prelude::{ReadChannels, ReadLayers};
-    let img = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(std::io::Cursor::new(bytes))
-        .expect("a readable sample EXR");
-    let layer = &img.layer_data;
-    let mask = layer
-        .channel_data
-        .list
-        .iter()
-        .find(|c| c.name.to_string() == "mask.A")
-        .expect("a mask.A channel")
-        .sample_data
-        .values_as_f32()
-        .collect();
-    (layer.size.width() as u32, layer.size.height() as u32, mask)
-}
-
-/// Whether (x, y) lies in the light-ball inset `Relighting::with_inset` draws at the bottom
-/// right: balls of max(min(w, h)/5, 8) px side by side, when 2·ball ≤ w and ball ≤ h.
-fn in_inset(w: u32, h: u32, x: u32, y: u32) -> bool {
-    let ball = (w.min(h) / 5).max(8);
-    2 * ball <= w && ball <= h && x >= w - 2 * ball && y >= h - ball
 }
 
 fn example() -> String {
@@ -162,7 +135,7 @@ fn demo_renders_exports_and_draws_a_sheet() {
         (6 * (16 + 2) + 2, 12 + 3 * (12 + 16 + 2) + 2)
     );
     for (row, s) in samples.iter().enumerate() {
-        let (w, h, mask) = exr_mask(&s.exr);
+        let (w, h, mask) = sample_mask(&s.exr);
         assert_eq!((w, h), (16, 16));
         let (x0, y0) = (2 + 5 * (16 + 2), 12 + row as u32 * (12 + 16 + 2) + 12);
         for y in 0..h {
@@ -202,26 +175,12 @@ fn demo_renders_exports_and_draws_a_sheet() {
         .iter()
         .find(|s| s.index == entry.index)
         .expect("the relit sample is exported");
-    let (w, h, mask) = exr_mask(&relit_sample.exr);
+    let (w, h, mask) = sample_mask(&relit_sample.exr);
     let relit = image::open(dir.path().join("demo/relit.png"))
         .expect("relit.png")
         .to_rgb8();
     assert_eq!((relit.width(), relit.height()), (w, h));
-    let mut subject_lit = false;
-    for y in 0..h {
-        for x in 0..w {
-            if in_inset(w, h, x, y) {
-                continue;
-            }
-            let p = relit.get_pixel(x, y).0;
-            if mask[(y * w + x) as usize] == 0.0 {
-                assert_eq!(p, [0, 0, 0], "relit.png at ({x}, {y}) is off the mask");
-            } else {
-                subject_lit |= p != [0, 0, 0];
-            }
-        }
-    }
-    assert!(subject_lit, "the relit subject is black everywhere");
+    assert_relit_masked(&relit, &mask, "relit.png");
 
     // And scored the model: the input row and the model's, with finite metrics.
     let eval: serde_json::Value = serde_json::from_slice(

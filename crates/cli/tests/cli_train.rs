@@ -2,10 +2,14 @@
 //! resumes the same loss curve; relight writes the image, its inset and intermediates; eval
 //! prints a row per model; bad input is an error naming it.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
+
+use common::{assert_relit_masked, inset, positions, sample_mask};
 
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_lightfarm"));
@@ -56,42 +60,6 @@ fn write_config(dir: &Path, name: &str, steps: u64) -> PathBuf {
     )
     .expect("write config");
     path
-}
-
-/// The `mask.A` channel of a sample EXR, read independently of the trainer's decoder.
-fn exr_mask(path: &Path) -> (usize, usize, Vec<f32>) {
-    use exr::prelude::{ReadChannels, ReadLayers};
-    let img = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
-        .expect("a readable sample EXR");
-    let layer = &img.layer_data;
-    let mask = layer
-        .channel_data
-        .list
-        .iter()
-        .find(|c| c.name.to_string() == "mask.A")
-        .expect("a mask.A channel")
-        .sample_data
-        .values_as_f32()
-        .collect();
-    (layer.size.width(), layer.size.height(), mask)
-}
-
-/// Whether (x, y) lies in the light-ball inset `Relighting::with_inset` draws at the bottom
-/// right: balls of max(min(w, h)/5, 8) px side by side, when 2·ball ≤ w and ball ≤ h.
-fn in_inset(w: u32, h: u32, x: u32, y: u32) -> bool {
-    let ball = (w.min(h) / 5).max(8);
-    2 * ball <= w && ball <= h && x >= w - 2 * ball && y >= h - ball
-}
-
-/// Pixel positions of a `w × h` image in row-major order.
-fn positions(w: u32, h: u32) -> impl Iterator<Item = (u32, u32)> {
-    (0..h).flat_map(move |y| (0..w).map(move |x| (x, y)))
 }
 
 fn losses(run: &Path) -> Vec<serde_json::Value> {
@@ -178,9 +146,8 @@ fn relight_and_eval_write_what_they_promise() {
     };
     let studio = relight_exr("studio_small_03", "relit");
     let sunset = relight_exr("venice_sunset", "sunset");
-    let (w, h, mask) = exr_mask(&exr);
+    let (w, h, mask) = sample_mask(&std::fs::read(&exr).expect("read the sample EXR"));
     assert_eq!((w, h), (16, 16));
-    let (w, h) = (w as u32, h as u32);
     let open = |p: &Path| {
         let img = image::open(p)
             .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
@@ -191,30 +158,14 @@ fn relight_and_eval_write_what_they_promise() {
     let side = |name: &str, s: &str| tmp.path().join(format!("{name}_{s}.png"));
     let (a, b) = (open(&studio), open(&sunset));
     let subject: Vec<(u32, u32)> = positions(w, h)
-        .filter(|&(x, y)| mask[(y * w + x) as usize] > 0.0 && !in_inset(w, h, x, y))
+        .filter(|&(x, y)| mask[(y * w + x) as usize] > 0.0 && !inset(w, h, x, y))
         .collect();
     assert!(
         !subject.is_empty(),
         "the sample has subject pixels outside the inset"
     );
-    for img in [&a, &b] {
-        // The relit image is the network's output times the mask: black off the subject.
-        for (x, y) in positions(w, h) {
-            if mask[(y * w + x) as usize] == 0.0 && !in_inset(w, h, x, y) {
-                assert_eq!(
-                    img.get_pixel(x, y).0,
-                    [0, 0, 0],
-                    "({x}, {y}) is off the mask"
-                );
-            }
-        }
-        assert!(
-            subject
-                .iter()
-                .any(|&(x, y)| img.get_pixel(x, y).0 != [0, 0, 0]),
-            "the relit subject is all black"
-        );
-    }
+    assert_relit_masked(&a, &mask, "relit under studio_small_03");
+    assert_relit_masked(&b, &mask, "relit under venice_sunset");
     assert!(
         subject
             .iter()
@@ -283,19 +234,12 @@ fn relight_and_eval_write_what_they_promise() {
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     let img = image::open(&out2).expect("png").to_rgb8();
     assert_eq!((img.width(), img.height()), (20, 12));
-    // Masked-out columns stay black outside the inset (it covers x >= 4, y >= 4 here).
-    for (x, y) in positions(20, 12).filter(|&(x, y)| x <= 4 && !in_inset(20, 12, x, y)) {
-        assert_eq!(
-            img.get_pixel(x, y).0,
-            [0, 0, 0],
-            "({x}, {y}) is off the mask"
-        );
-    }
-    assert!(
-        positions(20, 12)
-            .any(|(x, y)| x > 4 && !in_inset(20, 12, x, y) && img.get_pixel(x, y).0 != [0, 0, 0]),
-        "the relit subject is all black"
-    );
+    // The mask PNG is white for x > 4: the relit image is black elsewhere, outside the inset
+    // (it covers x >= 4, y >= 4 here).
+    let photo_mask: Vec<f32> = positions(20, 12)
+        .map(|(x, _)| if x > 4 { 1.0 } else { 0.0 })
+        .collect();
+    assert_relit_masked(&img, &photo_mask, "the relit photo");
 
     // eval: the input row and one per model.
     let json = tmp.path().join("eval.json");

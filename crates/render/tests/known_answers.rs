@@ -204,14 +204,7 @@ fn passes_normals_mask_and_lens() {
 
     // A clear lens in front of the left half: only normal_lens sees it.
     let mut scene = common::sphere_scene(0.5);
-    let lens = Material {
-        name: "lens".into(),
-        transmission: 1.0,
-        ior: 1.5,
-        roughness: 0.0,
-        metallic: 0.0,
-        ..Material::default()
-    };
+    let lens = common::clear_glass("lens");
     scene.add_mesh_instance(
         shapes::quad(0.6, 0.6),
         lens,
@@ -425,14 +418,7 @@ fn white_sphere_in_a_glass_shell() -> Scene {
         common::material(1.0, 0.0),
         Mat4::IDENTITY,
     );
-    let glass = Material {
-        name: "glass".into(),
-        transmission: 1.0,
-        ior: 1.5,
-        roughness: 0.0,
-        metallic: 0.0,
-        ..Material::default()
-    };
+    let glass = common::clear_glass("glass");
     scene.add_mesh_instance(shapes::icosphere(0.5, 5), glass.clone(), Mat4::IDENTITY);
     let mut inner = shapes::icosphere(0.49, 5);
     for t in inner.indices.chunks_exact_mut(3) {
@@ -519,40 +505,29 @@ fn furnace_white_sphere_seen_through_clear_glass() {
         size,
         256,
     );
-    let eye = Vec3::new(0.0, 0.0, 3.0);
+    // Per pixel, the mean of T over sub-pixel rays, from their impact parameter: a ray
+    // meeting a sphere of radius ρ at cosine c passes the centre at b = ρ·√(1 − c²). Pixels
+    // with a ray passing near the white sphere's silhouette (b > 0.28) are left out.
+    const KEEP: f64 = 0.28;
+    let transmission = over_sphere_pixels(size, KEEP as f32, |c| {
+        let impact = KEEP * (1.0 - c * c).max(0.0).sqrt();
+        let wall = |radius: f64| {
+            let s = impact / radius;
+            fresnel_dielectric((1.0 - s * s).sqrt(), 1.5)
+        };
+        let (f1, f2) = (wall(0.5), wall(0.49));
+        (1.0 - f1) * (1.0 - f2) / (1.0 - f1 * f2)
+    });
     let (mut got, mut want, mut n) = (0.0f64, 0.0f64, 0usize);
-    for py in 0..size {
-        for px in 0..size {
-            // Mean of T over 8×8 sub-pixel rays; pixels with a ray passing near the sphere's
-            // silhouette (b ≥ 0.28) are left out.
-            let mut t_sum = Some(0.0f64);
-            for a in 0..8 {
-                for b in 0..8 {
-                    let sx = ((px as f32 + (a as f32 + 0.5) / 8.0) / size as f32) * 2.0 - 1.0;
-                    let sy = 1.0 - ((py as f32 + (b as f32 + 0.5) / 8.0) / size as f32) * 2.0;
-                    let impact = f64::from(eye.cross(front_ray(sx, sy)).length());
-                    if impact >= 0.28 {
-                        t_sum = None;
-                        continue;
-                    }
-                    let wall = |radius: f64| {
-                        let s = impact / radius;
-                        fresnel_dielectric((1.0 - s * s).sqrt(), 1.5)
-                    };
-                    let (f1, f2) = (wall(0.5), wall(0.49));
-                    t_sum = t_sum.map(|t| t + (1.0 - f1) * (1.0 - f2) / (1.0 - f1 * f2) / 64.0);
-                }
-            }
-            let i = (py * size + px) as usize;
-            if let Some(t) = t_sum {
-                assert!(
-                    out.mask[i] > 0.999 && out.albedo[i][0] > 0.999,
-                    "pixel {i} sees the sphere"
-                );
-                got += f64::from(out.lit[0][i][0] + out.lit[0][i][1] + out.lit[0][i][2]) / 3.0;
-                want += t;
-                n += 1;
-            }
+    for (i, t) in transmission.iter().enumerate() {
+        if let Some(t) = t {
+            assert!(
+                out.mask[i] > 0.999 && out.albedo[i][0] > 0.999,
+                "pixel {i} sees the sphere"
+            );
+            got += f64::from(out.lit[0][i][0] + out.lit[0][i][1] + out.lit[0][i][2]) / 3.0;
+            want += t;
+            n += 1;
         }
     }
     assert!(n > 150, "the sphere covers {n} pixels");

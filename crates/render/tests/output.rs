@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use glam::{Mat4, Vec3};
 use lightfarm_light::{EnvTransform, Hdri};
 use lightfarm_render::output::{write_exr, write_preview_png};
-use lightfarm_render::scene::{shapes, Material};
+use lightfarm_render::scene::shapes;
 use lightfarm_render::{EnvLight, RenderOutput};
 
 /// Every channel of the first layer of an EXR file, by name, plus its string attributes.
@@ -107,14 +107,7 @@ fn the_exr_holds_exactly_the_rendered_passes() {
     let mut red = common::material(0.5, 0.5);
     red.base_color = [0.8, 0.3, 0.1, 1.0];
     scene.add_mesh_instance(shapes::icosphere(0.5, 3), red, Mat4::IDENTITY);
-    let lens = Material {
-        name: "lens".into(),
-        transmission: 1.0,
-        ior: 1.5,
-        roughness: 0.0,
-        metallic: 0.0,
-        ..Material::default()
-    };
+    let lens = common::clear_glass("lens");
     // Tilted, so normal_lens has three different non-zero components.
     scene.add_mesh_instance(
         shapes::quad(0.5, 0.5),

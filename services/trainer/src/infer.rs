@@ -83,8 +83,7 @@ impl Relighting {
     pub fn with_inset(&self, lighting: &Lighting, camera_to_env: [[f32; 3]; 3]) -> Vec<[f32; 3]> {
         let (w, h) = (self.width, self.height);
         let mut out = self.relit.clone();
-        let ball = (h.min(w) / 5).max(8);
-        if 2 * ball <= w && ball <= h {
+        if let Some(ball) = inset_ball(w, h) {
             let balls = light_balls(lighting, camera_to_env, ball);
             for y in 0..ball {
                 for x in 0..2 * ball {
@@ -94,6 +93,19 @@ impl Relighting {
         }
         out
     }
+}
+
+/// Side in pixels of each of the inset's two light balls on a `width` × `height` image, or None
+/// when the image is too small to hold them (then no inset is drawn).
+pub fn inset_ball(width: usize, height: usize) -> Option<usize> {
+    let ball = (height.min(width) / 5).max(8);
+    (2 * ball <= width && ball <= height).then_some(ball)
+}
+
+/// Whether pixel (x, y) of a `width` × `height` relit image is covered by the inset that
+/// [`Relighting::with_inset`] draws at the bottom right.
+pub fn in_inset(width: usize, height: usize, x: usize, y: usize) -> bool {
+    inset_ball(width, height).is_some_and(|b| x >= width - 2 * b && y >= height - b)
 }
 
 /// Normals as colours, (n + 1)/2, linearised so an sRGB PNG shows exactly those values.

@@ -129,10 +129,14 @@ async fn submit_watch_checkpoints_and_relight() {
         }
     }
     // Without a mask the request image's alpha is the mask (0 for x <= 3). The relit image is
-    // the network's output times the mask, so those columns are black, except where the
-    // light-ball inset is drawn: balls of max(min(24, 16)/5, 8) = 8 px at the bottom right,
-    // x >= 8, y >= 8.
-    let in_inset = |x: u32, y: u32| x >= 8 && y >= 8;
+    // the network's output times the mask, so those columns are black; the light-ball inset
+    // (x >= 8, y >= 8 at 24×16) does not reach them.
+    let in_inset =
+        |x: u32, y: u32| lightfarm_trainer::infer::in_inset(24, 16, x as usize, y as usize);
+    assert!(
+        in_inset(8, 8) && !in_inset(7, 15) && !in_inset(23, 7),
+        "the inset is x >= 8, y >= 8"
+    );
     let decode = |bytes: &[u8]| image::load_from_memory(bytes).expect("relit PNG").to_rgb8();
     let (a, b) = (decode(&park.relit_png), decode(&studio.relit_png));
     let subject: Vec<(u32, u32)> = (0..16)

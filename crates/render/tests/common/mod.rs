@@ -37,6 +37,18 @@ pub fn material(base: f32, specular: f32) -> Material {
     }
 }
 
+/// Clear, smooth glass of index 1.5: what the renderer treats as a lens (transmission > 0.5).
+pub fn clear_glass(name: &str) -> Material {
+    Material {
+        name: name.into(),
+        transmission: 1.0,
+        ior: 1.5,
+        roughness: 0.0,
+        metallic: 0.0,
+        ..Material::default()
+    }
+}
+
 /// A diffuse sphere of radius 0.5 at the origin, albedo `albedo`, no specular layer.
 pub fn sphere_scene(albedo: f32) -> Scene {
     let mut scene = Scene::default();
