@@ -29,7 +29,7 @@ fn main() {
     let root = manifest.join("../../shaders");
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     println!("cargo:rerun-if-changed={}", root.display());
-    for kernel in ["integrator", "probe", "trace_rays"] {
+    for kernel in ["integrator", "probe", "trace_rays", "tables"] {
         let rel = format!("kernels/{kernel}.wgsl");
         let mut src = String::new();
         expand(&root, &rel, &mut HashSet::new(), &mut src);

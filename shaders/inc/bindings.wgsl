@@ -1,4 +1,4 @@
-// Every kernel of the renderer sees the same 16 storage-buffer bindings (set 0), declared once here
+// Every kernel of the renderer sees the same 17 storage-buffer bindings (set 0), declared once here
 // and mirrored by `crates/render/src/gpu_types.rs`. A kernel that does not use a binding still gets a
 // (dummy) buffer bound there, which keeps the host side uniform.
 
@@ -40,6 +40,19 @@ struct Material {
     tex: vec4<u32>,
     // normal scale, opacity (coverage; < 1 is stochastically see-through), unused x2
     extra: vec4<f32>,
+    // Standard Surface layers of the MODEL_* > 0 materials (zero for the glTF mapping):
+    // subsurface colour rgb (x < 0: the base colour), subsurface weight
+    sss: vec4<f32>,
+    // mean free path rgb in scene units (radius x scale), anisotropy g
+    sss_mfp: vec4<f32>,
+    // coat colour rgb, coat weight
+    coat: vec4<f32>,
+    // coat roughness, coat ior, sheen weight, sheen roughness
+    coat_sheen: vec4<f32>,
+    // sheen colour rgb, unused
+    sheen_color: vec4<f32>,
+    // specular-weight texture (NO_TEX when absent), model (MODEL_*), object class (id pass), unused
+    tex2: vec4<u32>,
 };
 
 struct EnvDesc {
@@ -65,12 +78,17 @@ struct Push {
     mode: u32,   // probe / test kernels: what to run
     count: u32,  // probe / test kernels: how many items
     mutate: u32, // probe kernel: 0, or 1 + axis of a deliberately biased sampler (tests only)
-    _pad1: u32,
+    passes: u32, // integrator: 1 = accumulate the appendix passes of `light` into probe_out
 };
 
 const NO_NODE: u32 = 0xffffffffu;
 const NO_TEX: u32 = 0xffffffffu;
 const MAT_FLAG_LENS: u32 = 1u;
+// Material models (crates/render/src/scene/mod.rs MaterialModel): 0 is the glTF
+// metallic-roughness mapping, everything above it the layered Standard Surface (layered.wgsl).
+const MODEL_GLTF: u32 = 0u;
+// Side of the directional-albedo tables (`tables`, written once by kernels/tables.wgsl).
+const LUT_N: u32 = 32u;
 const SCENE_HAS_LENS: u32 = 1u;
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.318309886183791;
@@ -91,5 +109,8 @@ const INV_PI: f32 = 0.318309886183791;
 @group(0) @binding(13) var<storage, read_write> counters: array<atomic<u32>>;
 @group(0) @binding(14) var<storage, read> probe_in: array<vec4<f32>>;
 @group(0) @binding(15) var<storage, read_write> probe_out: array<vec4<f32>>;
+// Directional albedo of the layered model's lobes, LUT_N x LUT_N cells over (cos θ, roughness):
+// (GGX with F = 1 - Schlick term, GGX Schlick term, Charlie sheen, unused); see layered.wgsl.
+@group(0) @binding(16) var<storage, read> tables: array<vec4<f32>>;
 
 var<immediate> pc: Push;

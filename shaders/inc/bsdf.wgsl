@@ -1,4 +1,5 @@
-// Surface scattering for glTF metallic-roughness materials: Lambert diffuse + GGX specular
+// Surface scattering for glTF metallic-roughness materials (MODEL_GLTF; the layered Standard
+// Surface of the other models is layered.wgsl, which dispatches between both): Lambert diffuse + GGX specular
 // (roughness r -> α = r², visible-normal sampling with spherical caps, Dupuy & Benyoub 2023),
 // metals through F0 = base colour, KHR_materials_specular (specular 0 => pure diffuse), and a
 // smooth dielectric for transmissive materials (eyeglass lenses). All directions are in the local
@@ -12,6 +13,20 @@ struct Surface {
     spec_color: vec3<f32>,
     transmission: f32,
     ior: f32,
+    // The layered Standard Surface (layered.wgsl) when model != MODEL_GLTF; the glTF mapping
+    // below ignores the rest.
+    model: u32,
+    sss: f32,
+    sss_color: vec3<f32>,
+    sss_mfp: vec3<f32>,
+    sss_g: f32,
+    coat: f32,
+    coat_color: vec3<f32>,
+    coat_alpha: f32,
+    coat_ior: f32,
+    sheen: f32,
+    sheen_color: vec3<f32>,
+    sheen_rough: f32,
 };
 
 struct BsdfEval {
@@ -25,6 +40,9 @@ struct BsdfSample {
     pdf: f32,
     is_delta: bool,
     valid: bool,
+    // The subsurface lobe was picked: no direction here; the integrator runs the random walk
+    // and `weight` is what enters the medium over the probability of picking the lobe.
+    subsurface: bool,
 };
 
 fn is_dielectric_delta(s: Surface) -> bool {
@@ -99,7 +117,7 @@ fn fresnel_dielectric(cos_i_in: f32, eta_in: f32) -> f32 {
     return 0.5 * (r_parl * r_parl + r_perp * r_perp);
 }
 
-// --- the layered metallic-roughness model ---
+// --- the glTF metallic-roughness model (MODEL_GLTF) ---
 
 fn surface_f0(s: Surface) -> vec3<f32> {
     let r = (s.ior - 1.0) / (s.ior + 1.0);
@@ -129,7 +147,7 @@ fn spec_probability(s: Surface, wo: vec3<f32>) -> f32 {
     return clamp(fs / (fs + fd), 0.1, 0.9);
 }
 
-fn bsdf_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> BsdfEval {
+fn gltf_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> BsdfEval {
     var out = BsdfEval(vec3<f32>(0.0), 0.0);
     if (is_dielectric_delta(s) || wo.z <= 0.0 || wi.z <= 0.0) {
         return out;
@@ -153,8 +171,26 @@ fn bsdf_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> BsdfEval {
     return out;
 }
 
-fn bsdf_sample(s: Surface, wo: vec3<f32>, u_lobe: f32, u: vec2<f32>) -> BsdfSample {
-    var out = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false);
+// gltf_eval's f·cos split into its diffuse and specular terms (the appendix passes): zero in
+// the coat and sheen members, which layered.wgsl's Lobes also has.
+fn gltf_lobes_parts(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> array<vec3<f32>, 2> {
+    if (is_dielectric_delta(s) || wo.z <= 0.0 || wi.z <= 0.0) {
+        return array<vec3<f32>, 2>(vec3<f32>(0.0), vec3<f32>(0.0));
+    }
+    let f0 = surface_f0(s);
+    let f90 = surface_f90(s);
+    let kd = diffuse_color(s) * (vec3<f32>(1.0) - schlick(f0, f90, wo.z) * (1.0 - s.metallic));
+    var spec = vec3<f32>(0.0);
+    if (spec_probability(s, wo) > 0.0) {
+        let m = normalize(wo + wi);
+        let a = max(s.alpha, 1e-4);
+        spec = schlick(f0, f90, dot(wo, m)) * (ggx_d(m, a) * ggx_g2(wo, wi, a) / (4.0 * wo.z));
+    }
+    return array<vec3<f32>, 2>(kd * INV_PI * wi.z, spec);
+}
+
+fn gltf_sample(s: Surface, wo: vec3<f32>, u_lobe: f32, u: vec2<f32>) -> BsdfSample {
+    var out = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false, false);
     if (is_dielectric_delta(s)) {
         let f = fresnel_dielectric(wo.z, s.ior);
         if (u_lobe < f) {
@@ -195,7 +231,7 @@ fn bsdf_sample(s: Surface, wo: vec3<f32>, u_lobe: f32, u: vec2<f32>) -> BsdfSamp
     if (wi.z <= 0.0) {
         return out;
     }
-    let e = bsdf_eval(s, wo, wi);
+    let e = gltf_eval(s, wo, wi);
     if (e.pdf <= 0.0) {
         return out;
     }

@@ -110,7 +110,16 @@ fn shade_hit(ray: Ray, hit: Hit) -> ShadingPoint {
     if (from_back && mat.mrst.w > 0.5) {
         ior = 1.0 / ior;
     }
-    let surface = Surface(base, clamp(metallic, 0.0, 1.0), alpha, mat.mrst.z, mat.spec_color_ior.xyz, mat.mrst.w, ior);
+    var specular = mat.mrst.z;
+    if (mat.tex2.x != NO_TEX) {
+        specular *= texture_sample(mat.tex2.x, uv).x;
+    }
+    // The paper's skin scatters its diffuse texture: a negative subsurface colour means "the base".
+    let sss_color = select(mat.sss.xyz, base, mat.sss.x < 0.0);
+    let coat_alpha = max(mat.coat_sheen.x * mat.coat_sheen.x, 1e-3);
+    let surface = Surface(base, clamp(metallic, 0.0, 1.0), alpha, specular, mat.spec_color_ior.xyz, mat.mrst.w, ior,
+        mat.tex2.y, mat.sss.w, sss_color, mat.sss_mfp.xyz, mat.sss_mfp.w,
+        mat.coat.w, mat.coat.xyz, coat_alpha, mat.coat_sheen.y, mat.coat_sheen.z, mat.sheen_color.xyz, mat.coat_sheen.w);
     return ShadingPoint(p, ng, frame, mat_id, mat.tex.w, mat.extra.y, surface, base);
 }
 

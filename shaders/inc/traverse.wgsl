@@ -8,6 +8,7 @@
 
 const NODE_VEC4S: u32 = 5u;
 const TRI_ATTR_VEC4S: u32 = 5u;
+const NO_MATERIAL: u32 = 0xffffffffu;
 // Traversal stacks live in workgroup memory, one slice per invocation: lavapipe lowers a
 // dynamically indexed private array to a ladder of selects over all its elements (measured as a
 // fifth of the render time), while workgroup memory is plain addressable memory. Every kernel
@@ -146,7 +147,8 @@ fn transform_dir(m: mat4x4<f32>, d: vec3<f32>) -> vec3<f32> {
 
 // Closest hit (any_hit = false) or first hit found (any_hit = true) in one BLAS. The ray is in object
 // space with an unnormalised direction, so t stays in world units across instances.
-fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, best: ptr<function, Hit>, any_hit: bool) -> bool {
+// `only_mat` != NO_MATERIAL restricts the hits to triangles of that material (the SSS walk).
+fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, best: ptr<function, Hit>, any_hit: bool, only_mat: u32) -> bool {
     let inst = instances[inst_id];
     let inv_dir = vec3<f32>(safe_inverse(dir.x), safe_inverse(dir.y), safe_inverse(dir.z));
     let oct = octant_inv4(dir);
@@ -164,7 +166,8 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
             let h = intersect_triangle(slot, origin, dir, tmin, tmax);
             // Shadow rays (any hit) see through mostly transparent surfaces (opacity < 0.5).
             let see_through = any_hit && materials[triangle_material(slot)].extra.y < 0.5;
-            if (h.x >= 0.0 && ((*best).t < 0.0 || h.x < (*best).t) && !see_through) {
+            let other_mat = only_mat != NO_MATERIAL && triangle_material(slot) != only_mat;
+            if (h.x >= 0.0 && ((*best).t < 0.0 || h.x < (*best).t) && !see_through && !other_mat) {
                 *best = Hit(h.x, inst_id, slot, h.y, h.z);
                 found = true;
                 if (any_hit) {
@@ -227,7 +230,7 @@ fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
             if ((inst.flags & skip_flags) == 0u) {
                 let o = transform_point(inst.world_to_obj, ray.origin);
                 let d = transform_dir(inst.world_to_obj, ray.dir);
-                if (traverse_blas(inst_id, o, d, ray.tmin, &best, any_hit) && any_hit) {
+                if (traverse_blas(inst_id, o, d, ray.tmin, &best, any_hit, NO_MATERIAL) && any_hit) {
                     return best;
                 }
             }

@@ -4,7 +4,10 @@
 //!include inc/traverse.wgsl
 //!include inc/env.wgsl
 //!include inc/bsdf.wgsl
+//!include inc/layered.wgsl
+//!include inc/subsurface.wgsl
 //!include inc/shading.wgsl
+//!include inc/walk.wgsl
 
 // The path tracer: one invocation per pixel, `pc.sample_count` camera samples per dispatch for the
 // lighting `pc.light`. Unidirectional path tracing with next-event estimation of the environment,
@@ -13,9 +16,57 @@
 // and is not recorded (the sample contract: background = 0 where the mask is 0).
 //
 // Accumulators: accum_lit[light * pixels + p] += radiance; with pc.write_aux, accum_aux[4p..4p+4]
-// += (albedo, coverage), (normal, 0), (normal_lens, lens coverage), (unused).
+// += (albedo, coverage), (normal, 0), (normal_lens = lens normal or normal, lens coverage), (unused).
 
 const SHADOW_LENS_LAYERS: u32 = 4u;
+
+// The appendix passes (pc.passes != 0; the renderer binds their accumulator at probe_out):
+// PASS_VEC4S per pixel for the dispatch's lighting: diffuse, specular, sss, coat, sheen (rgb),
+// (direct light with visibility, without it, 0, 0) as luminance for the shadow pass. Every
+// contribution of a path goes to the lobe family sampled at its first non-delta vertex, NEE
+// there by each family's own f; a lobe's share of a sampled continuation is its f over the
+// total f, so each pass is an unbiased estimate and the five sum to lit.
+const PASS_VEC4S: u32 = 6u;
+
+struct Passes {
+    diffuse: vec3<f32>,
+    specular: vec3<f32>,
+    sss: vec3<f32>,
+    coat: vec3<f32>,
+    sheen: vec3<f32>,
+    direct: f32,      // direct light at the first vertex, with visibility
+    unshadowed: f32,  // the same without visibility
+};
+
+fn passes_zero() -> Passes {
+    return Passes(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), 0.0, 0.0);
+}
+
+// Fractions of later contributions per family (set at the first non-delta vertex).
+struct Split {
+    diffuse: vec3<f32>,
+    specular: vec3<f32>,
+    sss: vec3<f32>,
+    coat: vec3<f32>,
+    sheen: vec3<f32>,
+};
+
+fn split_add(ps: ptr<function, Passes>, s: Split, c: vec3<f32>) {
+    (*ps).diffuse += c * s.diffuse;
+    (*ps).specular += c * s.specular;
+    (*ps).sss += c * s.sss;
+    (*ps).coat += c * s.coat;
+    (*ps).sheen += c * s.sheen;
+}
+
+fn safe_ratio(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return select(vec3<f32>(0.0), a / b, b > vec3<f32>(0.0));
+}
+
+fn split_of(l: Lobes) -> Split {
+    let f = lobes_sum(l);
+    return Split(safe_ratio(l.diffuse, f), safe_ratio(l.specular, f), vec3<f32>(0.0), safe_ratio(l.coat, f), safe_ratio(l.sheen, f));
+}
 
 fn camera_ray(px: vec2<u32>, jitter: vec2<f32>) -> Ray {
     let ndc = (vec2<f32>(px) + jitter) / vec2<f32>(f32(params.width), f32(params.height));
@@ -60,7 +111,10 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
     return 0.0;
 }
 
-fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> vec3<f32> {
+fn trace_path(first: Ray, p: u32, sample: u32, light: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>, ps: ptr<function, Passes>) -> vec3<f32> {
+    let want_passes = pc.passes != 0u;
+    var split = Split(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    var split_set = false;
     var ray = first;
     var throughput = vec3<f32>(1.0);
     var radiance = vec3<f32>(0.0);
@@ -75,32 +129,47 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
     var nee_pdf = 0.0;
     var through_lenses = false;
     var lens_layers = 0u;
+    // A subsurface walk ends at an exit point, which is the next vertex without a ray to find it.
+    var exit_pending = false;
+    var exit_sp: ShadingPoint;
     for (var depth = 0u; depth <= params.max_depth; depth++) {
-        *rays += 1u;
-        let hit = trace_closest(ray);
-        if (depth == 0u && pc.write_aux != 0u) {
-            // The camera ray's hit serves the passes too.
-            aux_passes(ray, hit, p, rays);
-        }
-        if (hit.t < 0.0) {
-            if (!only_lens) {
-                let le = env_eval(light, ray.dir);
-                var w = 1.0;
-                if (!prev_delta) {
-                    w = power_heuristic(prev_pdf, env_pdf(light, ray.dir));
-                } else if (through_lenses) {
-                    w = power_heuristic(nee_pdf, env_pdf(light, ray.dir));
-                }
-                radiance += throughput * le * w;
+        var sp: ShadingPoint;
+        var hit_instance = 0u;
+        if (exit_pending) {
+            exit_pending = false;
+            sp = exit_sp;
+        } else {
+            *rays += 1u;
+            let hit = trace_closest(ray);
+            if (depth == 0u && pc.write_aux != 0u) {
+                // The camera ray's hit serves the passes too.
+                aux_passes(ray, hit, p, sample, rays);
             }
-            break;
-        }
-        let sp = shade_hit(ray, hit);
-        // Partial coverage (glTF alpha): the surface is there with probability `opacity`; otherwise
-        // the ray goes on along the same line (this counts as one of the path's events).
-        if (sp.opacity < 1.0 && rng_next(rng) >= sp.opacity) {
-            ray.tmin = hit.t * (1.0 + 1e-5) + 1e-6;
-            continue;
+            if (hit.t < 0.0) {
+                if (!only_lens) {
+                    let le = env_eval(light, ray.dir);
+                    var w = 1.0;
+                    if (!prev_delta) {
+                        w = power_heuristic(prev_pdf, env_pdf(light, ray.dir));
+                    } else if (through_lenses) {
+                        w = power_heuristic(nee_pdf, env_pdf(light, ray.dir));
+                    }
+                    let c = throughput * le * w;
+                    radiance += c;
+                    if (want_passes) {
+                        split_add(ps, split, c);
+                    }
+                }
+                break;
+            }
+            sp = shade_hit(ray, hit);
+            hit_instance = hit.instance;
+            // Partial coverage (glTF alpha): the surface is there with probability `opacity`;
+            // otherwise the ray goes on along the same line (one of the path's events).
+            if (sp.opacity < 1.0 && rng_next(rng) >= sp.opacity) {
+                ray.tmin = hit.t * (1.0 + 1e-5) + 1e-6;
+                continue;
+            }
         }
         let wo = to_local(sp.frame, -ray.dir);
         let delta = is_dielectric_delta(sp.surface);
@@ -119,9 +188,23 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
                 let e = bsdf_eval(sp.surface, wo, wi);
                 if (e.pdf > 0.0 || max3(e.f_cos) > 0.0) {
                     let vis = shadow_transmittance(offset_origin(sp.p, sp.ng, ls.dir), ls.dir, rays);
+                    let w = power_heuristic(ls.pdf, e.pdf);
                     if (vis > 0.0) {
-                        let w = power_heuristic(ls.pdf, e.pdf);
                         radiance += throughput * e.f_cos * ls.radiance * (vis * w / ls.pdf);
+                    }
+                    if (want_passes) {
+                        let k = throughput * ls.radiance * (w / ls.pdf);
+                        if (!split_set) {
+                            let lobes = bsdf_lobes(sp.surface, wo, wi);
+                            (*ps).diffuse += lobes.diffuse * k * vis;
+                            (*ps).specular += lobes.specular * k * vis;
+                            (*ps).coat += lobes.coat * k * vis;
+                            (*ps).sheen += lobes.sheen * k * vis;
+                            (*ps).direct += luminance(e.f_cos * k) * vis;
+                            (*ps).unshadowed += luminance(e.f_cos * k);
+                        } else {
+                            split_add(ps, split, e.f_cos * k * vis);
+                        }
                     }
                 }
             }
@@ -137,26 +220,46 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
         if (!bs.valid) {
             break;
         }
-        let wi_world = to_world(sp.frame, bs.wi);
-        // Reject directions that the shading normal allows but the geometry does not.
-        let below = dot(wi_world, sp.ng) < 0.0;
-        if (below && !delta) {
-            break;
-        }
-        throughput *= bs.weight;
-        prev_pdf = bs.pdf;
-        prev_delta = bs.is_delta;
-        if (!bs.is_delta) {
-            nee_pdf = bs.pdf;
-            through_lenses = true;
-            lens_layers = 0u;
+        if (bs.subsurface) {
+            let walk = random_walk(sp, hit_instance, wo, rng, rays);
+            if (!walk.ok) {
+                break;
+            }
+            throughput *= bs.weight * walk.weight;
+            if (!split_set) {
+                split = Split(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(1.0), vec3<f32>(0.0), vec3<f32>(0.0));
+                split_set = true;
+            }
+            exit_sp = walk.sp;
+            exit_pending = true;
+            // The exit vertex's wo: straight out, which a Lambertian exit does not depend on.
+            ray = Ray(exit_sp.p, -exit_sp.frame.n, 0.0, 3.4e38);
         } else {
-            // Frames face the incoming ray (wo.z > 0): a refraction leaves through the back.
-            lens_layers += 1u;
-            let refracted = bs.wi.z < 0.0 && (sp.flags & MAT_FLAG_LENS) != 0u;
-            through_lenses = through_lenses && refracted && lens_layers < SHADOW_LENS_LAYERS;
+            let wi_world = to_world(sp.frame, bs.wi);
+            // Reject directions that the shading normal allows but the geometry does not.
+            let below = dot(wi_world, sp.ng) < 0.0;
+            if (below && !delta) {
+                break;
+            }
+            throughput *= bs.weight;
+            if (want_passes && !split_set && !bs.is_delta) {
+                split = split_of(bsdf_lobes(sp.surface, wo, bs.wi));
+                split_set = true;
+            }
+            prev_pdf = bs.pdf;
+            prev_delta = bs.is_delta;
+            if (!bs.is_delta) {
+                nee_pdf = bs.pdf;
+                through_lenses = true;
+                lens_layers = 0u;
+            } else {
+                // Frames face the incoming ray (wo.z > 0): a refraction leaves through the back.
+                lens_layers += 1u;
+                let refracted = bs.wi.z < 0.0 && (sp.flags & MAT_FLAG_LENS) != 0u;
+                through_lenses = through_lenses && refracted && lens_layers < SHADOW_LENS_LAYERS;
+            }
+            ray = Ray(offset_origin(sp.p, sp.ng, wi_world), wi_world, 0.0, 3.4e38);
         }
-        ray = Ray(offset_origin(sp.p, sp.ng, wi_world), wi_world, 0.0, 3.4e38);
 
         if (depth + 1u >= params.rr_depth) {
             let q = clamp(max3(throughput), 0.05, 1.0);
@@ -169,9 +272,10 @@ fn trace_path(first: Ray, p: u32, light: u32, rng: ptr<function, Rng>, rays: ptr
     return radiance;
 }
 
-// Primary-hit passes: albedo, normal, coverage of the first non-lens surface; normal and coverage
-// of the first lens surface in front of it (lens surfaces count only in normal_lens).
-fn aux_passes(first: Ray, first_hit: Hit, p: u32, rays: ptr<function, u32>) {
+// Primary-hit passes: albedo, normal, coverage of the first non-lens surface; normal_lens is the
+// normal of the first lens surface in front of it, or that surface's normal where no lens is
+// (with the lens coverage in its w).
+fn aux_passes(first: Ray, first_hit: Hit, p: u32, sample: u32, rays: ptr<function, u32>) {
     var ray = first;
     var lens_done = false;
     for (var layer = 0u; layer < 8u; layer++) {
@@ -200,7 +304,17 @@ fn aux_passes(first: Ray, first_hit: Hit, p: u32, rays: ptr<function, u32>) {
             continue;
         }
         accum_aux[4u * p] += vec4<f32>(sp.albedo, 1.0);
-        accum_aux[4u * p + 1u] += vec4<f32>(to_camera(sp.frame.n), 0.0);
+        if (sample == 0u) {
+            // The id pass: the object class of the first sample's surface, 0 for background.
+            accum_aux[4u * p + 3u] = vec4<f32>(f32(materials[sp.material].tex2.z + 1u), 0.0, 0.0, 0.0);
+        }
+        let n = to_camera(sp.frame.n);
+        accum_aux[4u * p + 1u] += vec4<f32>(n, 0.0);
+        if (!lens_done) {
+            // No lens in front: the normal with lenses is the normal (the paper's N_l = N
+            // without eyeglasses), accumulated identically so the passes agree bit for bit.
+            accum_aux[4u * p + 2u] += vec4<f32>(n, 0.0);
+        }
         return;
     }
 }
@@ -215,16 +329,36 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     let pixels = params.width * params.height;
     var rays = 0u;
     var sum = vec3<f32>(0.0);
+    var passes = passes_zero();
     for (var i = 0u; i < pc.sample_count; i++) {
         let s = pc.sample_start + i;
         var rng = rng_init(p, s, params.seed);
         let ray = camera_ray(gid.xy, rng_next2(&rng));
-        let l = trace_path(ray, p, pc.light, &rng, &rays);
+        var ps = passes_zero();
+        let l = trace_path(ray, p, s, pc.light, &rng, &rays, &ps);
         // A non-finite sample would poison the pixel's sum for good: drop it.
         if (all(l == l) && max3(l) < 3.0e38) {
             sum += l;
+            if (pc.passes != 0u) {
+                passes.diffuse += ps.diffuse;
+                passes.specular += ps.specular;
+                passes.sss += ps.sss;
+                passes.coat += ps.coat;
+                passes.sheen += ps.sheen;
+                passes.direct += ps.direct;
+                passes.unshadowed += ps.unshadowed;
+            }
         }
     }
     accum_lit[pc.light * pixels + p] += vec4<f32>(sum, 0.0);
+    if (pc.passes != 0u) {
+        let b = PASS_VEC4S * p;
+        probe_out[b] += vec4<f32>(passes.diffuse, 0.0);
+        probe_out[b + 1u] += vec4<f32>(passes.specular, 0.0);
+        probe_out[b + 2u] += vec4<f32>(passes.sss, 0.0);
+        probe_out[b + 3u] += vec4<f32>(passes.coat, 0.0);
+        probe_out[b + 4u] += vec4<f32>(passes.sheen, 0.0);
+        probe_out[b + 5u] += vec4<f32>(passes.direct, passes.unshadowed, 0.0, 0.0);
+    }
     atomicAdd(&counters[0], rays);
 }

@@ -60,6 +60,10 @@ fn output_from_exr(bytes: &[u8]) -> Result<RenderOutput> {
         normal: s.normal,
         normal_lens: s.normal_lens,
         mask: s.mask,
+        // The contact sheet draws the contract's passes only.
+        pass_set: Vec::new(),
+        passes: Vec::new(),
+        id: Vec::new(),
         stats: RenderStats {
             seconds: 0.0,
             samples: 0,

@@ -8,7 +8,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lightfarm_light::{EnvTransform, Hdri};
 use lightfarm_render::gpu_scene::pack_scene;
 use lightfarm_render::output::{write_exr, write_preview_png};
-use lightfarm_render::scene::{Camera, Scene};
+use lightfarm_render::passes::Pass;
+use lightfarm_render::scene::{materials_json, Camera, Scene};
 use lightfarm_render::vulkan::{list_devices, DeviceRequest};
 use lightfarm_render::{EnvLight, RenderSettings, Renderer, RENDERER_VERSION};
 
@@ -42,6 +43,10 @@ pub struct RenderArgs {
     /// Maximum path length (scattering events).
     #[arg(long, default_value_t = 8)]
     max_depth: u32,
+    /// The appendix passes to add, comma-separated: diffuse, specular, sss, coat, sheen
+    /// (per lighting; the five sum to lit), shadow (per lighting), id; "none" for none.
+    #[arg(long, default_value = "diffuse,specular,shadow,id")]
+    passes: String,
     /// Output multi-layer EXR.
     #[arg(long)]
     out: PathBuf,
@@ -107,6 +112,16 @@ fn choose_camera(args: &RenderArgs, scene: &Scene, aspect: f32) -> Result<Camera
     Ok(Camera::frame_bounds(min, max, aspect))
 }
 
+/// `--passes a,b,c` (or `none`) as the renderer's pass list.
+fn parse_passes(text: &str) -> Result<Vec<Pass>> {
+    let t = text.trim();
+    if t.is_empty() || t == "none" {
+        return Ok(Vec::new());
+    }
+    let names: Vec<&str> = t.split(',').map(str::trim).collect();
+    Pass::parse_list(&names).map_err(|e| anyhow::anyhow!("--passes {text}: {e}"))
+}
+
 /// Refuses an output path whose directory does not exist, naming the flag.
 pub(crate) fn ensure_parent(path: &Path, flag: &str) -> Result<()> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -135,6 +150,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .with_context(|| format!("--scene {}", args.scene.display()))?;
     let lights = load_lights(&args)?;
     let camera = choose_camera(&args, &scene, width as f32 / height as f32)?;
+    let passes = parse_passes(&args.passes)?;
     let settings = RenderSettings {
         width,
         height,
@@ -143,6 +159,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         max_depth: args.max_depth,
         rr_depth: 5,
         camera,
+        passes: passes.clone(),
     };
     settings.validate()?;
 
@@ -172,6 +189,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             "up": camera.up.to_array(), "yfov_deg": camera.yfov_deg,
         },
         "width": width, "height": height, "spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
+        "passes": passes.iter().map(|p| p.name()).collect::<Vec<_>>(),
     });
     let stats = serde_json::to_value(&out.stats)?;
     let attributes = vec![
@@ -180,8 +198,20 @@ pub fn run(args: RenderArgs) -> Result<()> {
             RENDERER_VERSION.to_string(),
         ),
         ("lightfarm.spec".to_string(), spec.to_string()),
+        // Every material parameter as loaded (after extras.lightfarm), in material order.
+        (
+            "lightfarm.materials".to_string(),
+            materials_json(&scene).to_string(),
+        ),
         ("lightfarm.stats".to_string(), stats.to_string()),
     ];
+    let mut attributes = attributes;
+    if passes.contains(&Pass::Id) {
+        attributes.push((
+            "lightfarm.id_table".to_string(),
+            lightfarm_render::output::id_table_json(),
+        ));
+    }
     write_exr(&args.out, &out, &attributes)?;
     if let Some(p) = &args.preview {
         write_preview_png(p, &out, 0)?;

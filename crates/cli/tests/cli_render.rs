@@ -7,7 +7,7 @@ use std::process::{Command, Output};
 
 use lightfarm_light::{EnvTransform, Hdri};
 use lightfarm_render::gpu_scene::pack_scene;
-use lightfarm_render::scene::{Camera, Scene};
+use lightfarm_render::scene::{materials_json, Camera, Scene};
 use lightfarm_render::vulkan::DeviceRequest;
 use lightfarm_render::{EnvLight, RenderOutput, RenderSettings, Renderer};
 
@@ -78,6 +78,15 @@ fn render_from_spec(spec: &serde_json::Value) -> RenderOutput {
         // Not in the spec: the CLI's fixed Russian-roulette depth.
         rr_depth: 5,
         camera,
+        passes: lightfarm_render::passes::Pass::parse_list(
+            &spec["passes"]
+                .as_array()
+                .expect("spec.passes")
+                .iter()
+                .map(|p| p.as_str().expect("a pass name"))
+                .collect::<Vec<_>>(),
+        )
+        .expect("passes"),
     };
     Renderer::new(&DeviceRequest::Auto)
         .expect("a Vulkan device")
@@ -168,6 +177,21 @@ fn renders_the_head_with_two_lightings_stats_and_preview() {
         }
         other => panic!("spec attribute missing or not text: {other:?}"),
     };
+    // The materials as loaded, every parameter (the LeePerrySmith file carries no extras).
+    let materials = match layer
+        .attributes
+        .other
+        .get(&exr::prelude::Text::from("lightfarm.materials"))
+    {
+        Some(exr::prelude::AttributeValue::Text(t)) => {
+            serde_json::from_str::<serde_json::Value>(&t.to_string()).expect("materials is JSON")
+        }
+        other => panic!("materials attribute missing or not text: {other:?}"),
+    };
+    let scene = Scene::load_gltf(Path::new(&head)).expect("head");
+    assert_eq!(materials, materials_json(&scene));
+    assert_eq!(materials[0]["name"], "LeePerrySmith_skin");
+    assert_eq!(materials[0]["model"], "gltf");
     // The header's spec is enough to render the same passes again in this process, and the
     // file must hold exactly those passes, each channel under its own name.
     let rendered = render_from_spec(&spec);
@@ -194,6 +218,23 @@ fn renders_the_head_with_two_lightings_stats_and_preview() {
         expected.push((format!("normal_lens.{c}"), rgb(&rendered.normal_lens, k)));
     }
     expected.push(("mask.A".into(), rendered.mask.clone()));
+    // The default appendix passes, per lighting, and the id.
+    assert_eq!(
+        rendered.pass_set,
+        lightfarm_render::passes::Pass::DEFAULT.to_vec(),
+        "lightfarm render writes the default passes"
+    );
+    for (l, lp) in rendered.passes.iter().enumerate() {
+        for (k, c) in ["R", "G", "B"].iter().enumerate() {
+            expected.push((format!("diffuse{l}.{c}"), rgb(&lp.diffuse, k)));
+            expected.push((format!("specular{l}.{c}"), rgb(&lp.specular, k)));
+        }
+        expected.push((format!("shadow{l}.A"), lp.shadow.clone()));
+    }
+    expected.push((
+        "id.A".into(),
+        rendered.id.iter().map(|v| *v as f32).collect(),
+    ));
     assert_eq!(channels.len(), expected.len(), "{:?}", channels.keys());
     for (name, want) in &expected {
         let got = channels

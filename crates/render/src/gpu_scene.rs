@@ -80,6 +80,35 @@ fn material_gpu(m: &Material, texture_count: u32) -> MaterialGpu {
             if lens { MAT_FLAG_LENS } else { 0 },
         ],
         extra: [m.normal_scale, m.opacity.clamp(0.0, 1.0), 0.0, 0.0],
+        sss: match m.subsurface_color {
+            Some(c) => [c[0], c[1], c[2], m.subsurface.clamp(0.0, 1.0)],
+            None => [-1.0, -1.0, -1.0, m.subsurface.clamp(0.0, 1.0)],
+        },
+        sss_mfp: [
+            (m.subsurface_radius[0] * m.subsurface_scale).max(1e-7),
+            (m.subsurface_radius[1] * m.subsurface_scale).max(1e-7),
+            (m.subsurface_radius[2] * m.subsurface_scale).max(1e-7),
+            m.subsurface_anisotropy.clamp(-0.95, 0.95),
+        ],
+        coat: [
+            m.coat_color[0],
+            m.coat_color[1],
+            m.coat_color[2],
+            m.coat.clamp(0.0, 1.0),
+        ],
+        coat_sheen: [
+            m.coat_roughness.clamp(0.0, 1.0),
+            m.coat_ior.clamp(1.0, 3.0),
+            m.sheen.clamp(0.0, 1.0),
+            m.sheen_roughness.clamp(0.0, 1.0),
+        ],
+        sheen_color: [m.sheen_color[0], m.sheen_color[1], m.sheen_color[2], 0.0],
+        tex2: [
+            tex(m.specular_texture),
+            m.model.gpu_index(),
+            m.class as u32,
+            0,
+        ],
     }
 }
 

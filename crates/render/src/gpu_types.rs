@@ -55,6 +55,18 @@ pub struct MaterialGpu {
     pub tex: [u32; 4],
     /// normal scale, opacity
     pub extra: [f32; 4],
+    /// subsurface colour (x < 0: the base colour), subsurface weight
+    pub sss: [f32; 4],
+    /// mean free path (radius × scale, scene units), anisotropy
+    pub sss_mfp: [f32; 4],
+    /// coat colour, coat weight
+    pub coat: [f32; 4],
+    /// coat roughness, coat IOR, sheen weight, sheen roughness
+    pub coat_sheen: [f32; 4],
+    /// sheen colour
+    pub sheen_color: [f32; 4],
+    /// specular-weight texture, model, object class, unused
+    pub tex2: [u32; 4],
 }
 
 #[repr(C)]
@@ -87,12 +99,17 @@ pub struct Push {
     /// Probe kernel only: 0, or 1 + axis of a deliberately wrong sampler (see probe.wgsl);
     /// the tests use it to show that their statistics reject a biased sampler.
     pub mutate: u32,
-    pub _pad: u32,
+    /// Integrator only: 1 = accumulate the appendix passes (shaders/kernels/integrator.wgsl).
+    pub passes: u32,
 }
 
 const _: () = assert!(std::mem::size_of::<Params>() == 112);
 const _: () = assert!(std::mem::size_of::<InstanceGpu>() == 144);
-const _: () = assert!(std::mem::size_of::<MaterialGpu>() == 80);
+const _: () = assert!(std::mem::size_of::<MaterialGpu>() == 176);
+/// Side of the directional-albedo tables (LUT_N in shaders/inc/bindings.wgsl).
+pub const LUT_N: usize = 32;
+/// vec4s per pixel of the appendix-pass accumulator (PASS_VEC4S in integrator.wgsl).
+pub const PASS_VEC4S: usize = 6;
 const _: () = assert!(std::mem::size_of::<EnvDesc>() == 48);
 const _: () = assert!(std::mem::size_of::<Push>() == 32);
 const _: () = assert!(std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>() == NODE_WORDS * 4);

@@ -3,16 +3,19 @@
 //! Layout: `scene` (CPU scene from glTF), `gpu_scene` / `gpu_env` (flattening into the shaders'
 //! arrays, BVH builds), `gpu_types` (the shared `#[repr(C)]` structs), `vulkan` (the only module
 //! that touches ash), `renderer` (dispatching the integrator), `output` (EXR and PNG), `probe`
-//! (running the sampling routines and traversal on the device for tests).
+//! (running the sampling routines and traversal on the device for tests), `tables` (the layered
+//! model's directional-albedo tables).
 
 pub mod gpu_env;
 pub mod gpu_scene;
 pub mod gpu_types;
 pub mod output;
+pub mod passes;
 pub mod probe;
 pub mod renderer;
 pub mod scene;
 pub mod shaders;
+pub mod tables;
 pub mod vulkan;
 
 pub use gpu_env::EnvLight;

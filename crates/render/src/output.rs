@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use exr::prelude::*;
 
+use crate::passes::{id_table, Pass};
 use crate::renderer::RenderOutput;
 use crate::RenderError;
 
@@ -58,6 +59,40 @@ pub fn channel_names(lightings: usize) -> Vec<String> {
     v
 }
 
+/// Channel names of the optional passes `passes` for `lightings` lit layers, as written.
+pub fn pass_channel_names(lightings: usize, passes: &[Pass]) -> Vec<String> {
+    let mut v = Vec::new();
+    for l in 0..lightings {
+        for p in passes {
+            match p {
+                Pass::Shadow => v.push(format!("shadow{l}.A")),
+                Pass::Id => {}
+                rgb => {
+                    for c in ["R", "G", "B"] {
+                        v.push(format!("{}{l}.{c}", rgb.name()));
+                    }
+                }
+            }
+        }
+    }
+    if passes.contains(&Pass::Id) {
+        v.push("id.A".into());
+    }
+    v
+}
+
+/// The id pass's table as JSON, `{"0": "background", "1": "other", ...}`: the CLI writes it as
+/// the `lightfarm.id_table` attribute, a farm sample as the `id_table` field of its one
+/// `lightfarm.sample` attribute (exr keeps attributes in a HashMap, so a file with more than
+/// one is not byte-reproducible across processes, and a sample's bytes must be).
+pub fn id_table_json() -> String {
+    let map: serde_json::Map<String, serde_json::Value> = id_table()
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), serde_json::Value::from(v)))
+        .collect();
+    serde_json::Value::Object(map).to_string()
+}
+
 /// Writes every pass as 32-bit float channels (ZIP compressed) with `attributes` as string
 /// header attributes (sample spec, renderer version, statistics).
 pub fn write_exr(
@@ -78,6 +113,26 @@ pub fn write_exr(
         &mut channels,
     );
     channels.push(channel("mask.A".into(), out.mask.clone()));
+    for (l, lp) in out.passes.iter().enumerate() {
+        for p in &out.pass_set {
+            if let Some(img) = lp.rgb(*p) {
+                split3(
+                    img,
+                    &format!("{}{l}", p.name()),
+                    ["R", "G", "B"],
+                    &mut channels,
+                );
+            } else if *p == Pass::Shadow {
+                channels.push(channel(format!("shadow{l}.A"), lp.shadow.clone()));
+            }
+        }
+    }
+    if out.pass_set.contains(&Pass::Id) {
+        channels.push(channel(
+            "id.A".into(),
+            out.id.iter().map(|v| *v as f32).collect(),
+        ));
+    }
     let mut attrs = LayerAttributes::default();
     for (k, v) in attributes {
         attrs.other.insert(

@@ -15,7 +15,8 @@ use crate::RenderError;
 /// The largest batch one probe call accepts (one dispatch of 64-wide groups).
 pub const MAX_PROBE: usize = 1 << 22;
 
-/// Surface parameters as the shaders' `Surface` struct sees them (α, not roughness).
+/// Surface parameters as the shaders' `Surface` struct sees them (α, not roughness). The
+/// fields after `ior` are the layered model's (used when `model` is not 0, the glTF mapping).
 #[derive(Clone, Copy, Debug)]
 pub struct ProbeSurface {
     pub base: [f32; 3],
@@ -25,6 +26,45 @@ pub struct ProbeSurface {
     pub spec_color: [f32; 3],
     pub transmission: f32,
     pub ior: f32,
+    pub model: u32,
+    pub sss: f32,
+    pub sss_color: [f32; 3],
+    pub sss_mfp: [f32; 3],
+    pub sss_g: f32,
+    pub coat: f32,
+    pub coat_color: [f32; 3],
+    pub coat_alpha: f32,
+    pub coat_ior: f32,
+    pub sheen: f32,
+    pub sheen_color: [f32; 3],
+    pub sheen_rough: f32,
+}
+
+impl Default for ProbeSurface {
+    /// A white glTF dielectric with the layered parameters off.
+    fn default() -> Self {
+        ProbeSurface {
+            base: [1.0; 3],
+            metallic: 0.0,
+            alpha: 0.25,
+            specular: 1.0,
+            spec_color: [1.0; 3],
+            transmission: 0.0,
+            ior: 1.5,
+            model: 0,
+            sss: 0.0,
+            sss_color: [1.0; 3],
+            sss_mfp: [0.01; 3],
+            sss_g: 0.0,
+            coat: 0.0,
+            coat_color: [1.0; 3],
+            coat_alpha: 0.01,
+            coat_ior: 1.5,
+            sheen: 0.0,
+            sheen_color: [1.0; 3],
+            sheen_rough: 0.3,
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -34,7 +74,12 @@ pub struct BsdfProbeSample {
     pub weight: [f32; 3],
     pub valid: bool,
     pub delta: bool,
+    /// The subsurface lobe was picked (no direction; `weight` is what enters the medium).
+    pub subsurface: bool,
 }
+
+/// (single-scattering albedo α, the forward fit's slab reflectance of α) per channel.
+pub type AlbedoPair = ([f32; 3], [f32; 3]);
 
 /// A closest hit as the shader reports it.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,6 +101,7 @@ pub struct Probe {
     ctx: Arc<GpuContext>,
     probe: ComputeKernel,
     trace: ComputeKernel,
+    tables: GpuBuffer,
     /// 0, or 1 + the axis of the deliberately biased samplers (see [`Probe::biased`]).
     mutate: u32,
 }
@@ -88,8 +134,14 @@ impl Probe {
                 shaders::NUM_BINDINGS,
                 push,
             )?,
+            tables: crate::tables::compute(ctx)?,
             mutate: 0,
         })
+    }
+
+    /// The directional-albedo tables the kernels read (see [`crate::tables`]).
+    pub fn tables(&self) -> Result<Vec<[f32; 4]>, RenderError> {
+        crate::tables::read(&self.tables)
     }
 
     /// Makes the BSDF and environment samplers deliberately wrong (`Some(axis)`) or right again
@@ -126,7 +178,7 @@ impl Probe {
         let (lit, aux, counters) = (dummy("unused")?, dummy("unused")?, dummy("unused")?);
         let pin = GpuBuffer::from_slice(&self.ctx, "probe input", &input)?;
         let pout = GpuBuffer::zeroed(&self.ctx, "probe output", (out_vec4s as u64) * 16)?;
-        let bindings = bound.bindings([&lit, &aux, &counters, &pin, &pout]);
+        let bindings = bound.bindings([&lit, &aux, &counters, &pin, &pout], &self.tables);
         kernel.dispatch(
             &bindings,
             bytemuck::bytes_of(&push),
@@ -138,11 +190,17 @@ impl Probe {
     }
 
     fn surface_input(s: &ProbeSurface, wo: [f32; 3]) -> Vec<[f32; 4]> {
+        let v = |c: [f32; 3], w: f32| [c[0], c[1], c[2], w];
         vec![
-            [s.base[0], s.base[1], s.base[2], s.metallic],
+            v(s.base, s.metallic),
             [s.alpha, s.specular, s.transmission, s.ior],
-            [s.spec_color[0], s.spec_color[1], s.spec_color[2], 0.0],
-            [wo[0], wo[1], wo[2], 0.0],
+            v(s.spec_color, s.model as f32),
+            v(s.sss_color, s.sss),
+            v(s.sss_mfp, s.sss_g),
+            v(s.coat_color, s.coat),
+            [s.coat_alpha, s.coat_ior, s.sheen, s.sheen_rough],
+            v(s.sheen_color, 0.0),
+            v(wo, 0.0),
         ]
     }
 
@@ -180,6 +238,7 @@ impl Probe {
                 weight: [c[1][0], c[1][1], c[1][2]],
                 valid: (c[1][3] as u32) & 1 != 0,
                 delta: (c[1][3] as u32) & 2 != 0,
+                subsurface: (c[1][3] as u32) & 4 != 0,
             })
             .collect())
     }
@@ -305,6 +364,76 @@ impl Probe {
                     slot: v[2].to_bits(),
                 })
             })
+            .collect())
+    }
+
+    fn simple(
+        &self,
+        mode: u32,
+        input: Vec<[f32; 4]>,
+        n: usize,
+        out_vec4s: usize,
+        seed: u32,
+    ) -> Result<Vec<[f32; 4]>, RenderError> {
+        check_len(n)?;
+        let push = Push {
+            mode,
+            count: n as u32,
+            ..Default::default()
+        };
+        self.run(
+            &self.probe,
+            &PackedScene::empty(),
+            &PackedEnv::default(),
+            Job {
+                input,
+                out_vec4s,
+                push,
+                seed,
+            },
+        )
+    }
+
+    /// `n` free flights of the subsurface walk's spectral-MIS distance sampler for a medium of
+    /// subsurface colour `color`, anisotropy `g` and mean free path `mfp`, with the walk's
+    /// throughput `throughput`: (t, collision pdf at t, probability of flying past t, channel).
+    pub fn sss_flights(
+        &self,
+        throughput: [f32; 3],
+        color: [f32; 3],
+        g: f32,
+        mfp: [f32; 3],
+        n: usize,
+        seed: u32,
+    ) -> Result<Vec<[f32; 4]>, RenderError> {
+        let input = vec![
+            [throughput[0], throughput[1], throughput[2], 0.0],
+            [color[0], color[1], color[2], g],
+            [mfp[0], mfp[1], mfp[2], 0.0],
+        ];
+        self.simple(4, input, n, n, seed)
+    }
+
+    /// `n` Henyey–Greenstein scatterings of propagation direction `dir`: (new direction, pdf).
+    pub fn hg_samples(
+        &self,
+        dir: [f32; 3],
+        g: f32,
+        n: usize,
+        seed: u32,
+    ) -> Result<Vec<([f32; 3], f32)>, RenderError> {
+        let out = self.simple(5, vec![[dir[0], dir[1], dir[2], g]], n, n, seed)?;
+        Ok(out.iter().map(|v| ([v[0], v[1], v[2]], v[3])).collect())
+    }
+
+    /// The shader's albedo inversion for (subsurface colour, g): (single-scattering albedo α,
+    /// the forward fit's slab reflectance of α).
+    pub fn sss_albedo(&self, colors: &[([f32; 3], f32)]) -> Result<Vec<AlbedoPair>, RenderError> {
+        let input = colors.iter().map(|(c, g)| [c[0], c[1], c[2], *g]).collect();
+        let out = self.simple(6, input, colors.len(), 2 * colors.len(), 0)?;
+        Ok(out
+            .chunks_exact(2)
+            .map(|c| ([c[0][0], c[0][1], c[0][2]], [c[1][0], c[1][1], c[1][2]]))
             .collect())
     }
 }

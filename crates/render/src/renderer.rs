@@ -7,7 +7,8 @@ use std::time::Instant;
 
 use crate::gpu_env::{pack_envs, EnvLight, PackedEnv};
 use crate::gpu_scene::PackedScene;
-use crate::gpu_types::{Params, Push};
+use crate::gpu_types::{Params, Push, PASS_VEC4S};
+use crate::passes::{LitPasses, Pass};
 use crate::scene::Camera;
 use crate::shaders;
 use crate::vulkan::{ComputeKernel, DeviceInfo, DeviceRequest, GpuBuffer, GpuContext};
@@ -30,6 +31,8 @@ pub struct RenderSettings {
     /// Russian roulette starts at this depth.
     pub rr_depth: u32,
     pub camera: Camera,
+    /// The appendix passes to produce besides lit, albedo, normals and mask (crate::passes).
+    pub passes: Vec<Pass>,
 }
 
 impl RenderSettings {
@@ -87,6 +90,13 @@ pub struct RenderOutput {
     pub normal: Vec<[f32; 3]>,
     pub normal_lens: Vec<[f32; 3]>,
     pub mask: Vec<f32>,
+    /// The passes asked for in the settings (sorted); the output writes exactly these.
+    pub pass_set: Vec<Pass>,
+    /// One per lighting when `pass_set` has a light-dependent pass, else empty.
+    pub passes: Vec<LitPasses>,
+    /// Per pixel: 0 background, else 1 + the object class of the first sample's surface
+    /// (crate::passes::id_table); computed always, written when `pass_set` has `Id`.
+    pub id: Vec<u32>,
     pub stats: RenderStats,
 }
 
@@ -130,12 +140,18 @@ impl Bound {
         })
     }
 
-    /// All 16 bindings, with the four read-write ones given.
-    pub fn bindings<'a>(&'a self, rw: [&'a GpuBuffer; 5]) -> Vec<&'a GpuBuffer> {
+    /// All 17 bindings, with the read-write ones (and the probe input) given, then the
+    /// albedo tables.
+    pub fn bindings<'a>(
+        &'a self,
+        rw: [&'a GpuBuffer; 5],
+        tables: &'a GpuBuffer,
+    ) -> Vec<&'a GpuBuffer> {
         let mut v = vec![&self.params];
         v.extend(self.scene.iter());
         v.extend(self.env.iter());
         v.extend(rw);
+        v.push(tables);
         v
     }
 }
@@ -160,6 +176,7 @@ pub(crate) fn camera_params(settings: &RenderSettings) -> ([f32; 4], [f32; 4], [
 pub struct Renderer {
     ctx: Arc<GpuContext>,
     integrator: ComputeKernel,
+    tables: GpuBuffer,
 }
 
 impl Renderer {
@@ -172,7 +189,12 @@ impl Renderer {
             shaders::NUM_BINDINGS,
             std::mem::size_of::<Push>() as u32,
         )?;
-        let renderer = Renderer { ctx, integrator };
+        let tables = crate::tables::compute(&ctx)?;
+        let renderer = Renderer {
+            ctx,
+            integrator,
+            tables,
+        };
         renderer.warm_up()?;
         Ok(renderer)
     }
@@ -189,7 +211,7 @@ impl Renderer {
         let rw: Vec<GpuBuffer> = (0..5)
             .map(|_| GpuBuffer::zeroed(&self.ctx, "warm-up", 16))
             .collect::<Result<_, _>>()?;
-        let bindings = bound.bindings([&rw[0], &rw[1], &rw[2], &rw[3], &rw[4]]);
+        let bindings = bound.bindings([&rw[0], &rw[1], &rw[2], &rw[3], &rw[4]], &self.tables);
         self.integrator
             .dispatch(&bindings, bytemuck::bytes_of(&Push::default()), [1, 1, 1])?;
         Ok(())
@@ -248,8 +270,20 @@ impl Renderer {
         let aux = GpuBuffer::zeroed(&self.ctx, "pass accumulator", pixels * 4 * 16)?;
         let counters = GpuBuffer::zeroed(&self.ctx, "ray counter", 16)?;
         let dummy_in = GpuBuffer::zeroed(&self.ctx, "unused", 16)?;
-        let dummy_out = GpuBuffer::zeroed(&self.ctx, "unused", 16)?;
-        let bindings = bound.bindings([&lit, &aux, &counters, &dummy_in, &dummy_out]);
+        // The passes' accumulator holds one lighting at a time (read back after it), so its
+        // size does not grow with the number of lightings.
+        let split = Pass::needs_split(&settings.passes);
+        let pass_acc = GpuBuffer::zeroed(
+            &self.ctx,
+            "pass accumulator",
+            if split {
+                pixels * PASS_VEC4S as u64 * 16
+            } else {
+                16
+            },
+        )?;
+        let bindings = bound.bindings([&lit, &aux, &counters, &dummy_in, &pass_acc], &self.tables);
+        let mut lit_passes = Vec::new();
 
         // About a million paths per dispatch: long enough to keep a GPU busy, short enough for
         // a responsive progress bar on lavapipe and for the ray counter (u32) not to wrap.
@@ -267,6 +301,7 @@ impl Renderer {
                     sample_count: count,
                     light,
                     write_aux: (light == 0) as u32,
+                    passes: split as u32,
                     ..Default::default()
                 };
                 self.integrator
@@ -277,6 +312,15 @@ impl Renderer {
                 s += count;
                 done += count as u64;
                 progress(Progress { done, total });
+            }
+            if split {
+                let acc: Vec<[f32; 4]> = pass_acc.read()?;
+                lit_passes.push(LitPasses::resolve(
+                    &acc,
+                    pixels as usize,
+                    settings.spp as f32,
+                ));
+                pass_acc.write(&vec![[0f32; 4]; pixels as usize * PASS_VEC4S])?;
             }
         }
 
@@ -304,6 +348,7 @@ impl Renderer {
         let mut normal = Vec::with_capacity(n);
         let mut normal_lens = Vec::with_capacity(n);
         let mut mask = Vec::with_capacity(n);
+        let mut id = Vec::with_capacity(n);
         for p in 0..n {
             let a = aux_sum[4 * p];
             let hits = a[3];
@@ -313,6 +358,7 @@ impl Renderer {
                 [0.0; 3]
             });
             mask.push(hits / spp);
+            id.push(aux_sum[4 * p + 3][0] as u32);
             normal.push(normalize(aux_sum[4 * p + 1]));
             normal_lens.push(normalize(aux_sum[4 * p + 2]));
         }
@@ -327,6 +373,14 @@ impl Renderer {
             normal,
             normal_lens,
             mask,
+            pass_set: {
+                let mut v = settings.passes.clone();
+                v.sort();
+                v.dedup();
+                v
+            },
+            passes: lit_passes,
+            id,
             stats: RenderStats {
                 seconds,
                 samples,

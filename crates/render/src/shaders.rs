@@ -22,5 +22,10 @@ pub fn trace_rays() -> Vec<u32> {
     words(include_bytes!(concat!(env!("OUT_DIR"), "/trace_rays.spv")))
 }
 
+/// The layered model's directional-albedo tables (computed once per device).
+pub fn tables() -> Vec<u32> {
+    words(include_bytes!(concat!(env!("OUT_DIR"), "/tables.spv")))
+}
+
 /// Number of storage-buffer bindings every kernel declares (shaders/inc/bindings.wgsl).
-pub const NUM_BINDINGS: u32 = 16;
+pub const NUM_BINDINGS: u32 = 17;

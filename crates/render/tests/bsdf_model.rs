@@ -24,6 +24,7 @@ fn surface(base: [f32; 3], metallic: f32, roughness: f32, specular: f32) -> Prob
         spec_color: [1.0; 3],
         transmission: 0.0,
         ior: 1.5,
+        ..Default::default()
     }
 }
 

@@ -192,9 +192,14 @@ fn passes_normals_mask_and_lens() {
     assert!(right[0] > 0.5, "right of centre points +X: {right:?}");
     let top = at(size / 2, size / 2 - 9);
     assert!(top[1] > 0.5, "above centre points +Y: {top:?}");
+    // No lens: the normal with lenses is the normal, bit for bit (the paper's N_l = N).
     assert!(
-        plain.normal_lens.iter().all(|n| *n == [0.0; 3]),
-        "no lens, no lens normals"
+        plain
+            .normal_lens
+            .iter()
+            .zip(&plain.normal)
+            .all(|(nl, n)| nl.map(f32::to_bits) == n.map(f32::to_bits)),
+        "no lens: normal_lens must equal normal"
     );
     assert!(plain
         .albedo
@@ -202,7 +207,8 @@ fn passes_normals_mask_and_lens() {
         .zip(&plain.mask)
         .all(|(a, m)| *m == 0.0 || (a[0] - 0.5).abs() < 1e-4));
 
-    // A clear lens in front of the left half: only normal_lens sees it.
+    // A clear lens in front of the left half: only normal_lens sees it, and off the lens it is
+    // the normal bit for bit.
     let mut scene = common::sphere_scene(0.5);
     let lens = common::clear_glass("lens");
     scene.add_mesh_instance(
@@ -215,10 +221,20 @@ fn passes_normals_mask_and_lens() {
     for i in 0..(size * size) as usize {
         let x = (i as u32 % size) as f32;
         let nl = with_lens.normal_lens[i];
-        if nl != [0.0; 3] {
+        let differs = |j: usize| {
+            with_lens.normal_lens[j].map(f32::to_bits) != with_lens.normal[j].map(f32::to_bits)
+        };
+        if differs(i) {
             lens_pixels += 1;
             assert!(x < size as f32 / 2.0, "lens normals only on the left");
-            assert!(nl[2] > 0.99, "the lens faces the camera: {nl:?}");
+            // Pixels on the lens's edge mix lens and sphere normals; inside it, only the lens.
+            let s = size as usize;
+            let inside = i % s > 0
+                && i % s + 1 < s
+                && i >= s
+                && i + s < s * s
+                && [i - 1, i + 1, i - s, i + s].into_iter().all(differs);
+            assert!(!inside || nl[2] > 0.99, "the lens faces the camera: {nl:?}");
         }
         assert_eq!(
             with_lens.mask[i], plain.mask[i],
@@ -447,6 +463,7 @@ fn render_deep(
         max_depth: 16,
         rr_depth: 16,
         camera,
+        passes: Vec::new(),
     };
     let packed = lightfarm_render::gpu_scene::pack_scene(scene).expect("pack");
     common::renderer()

@@ -129,6 +129,7 @@ fn the_exr_holds_exactly_the_rendered_passes() {
         max_depth: 8,
         rr_depth: 5,
         camera: common::front_camera(),
+        passes: Vec::new(),
     };
     let out = common::renderer()
         .render(&packed, &lights, &settings, &mut |_| {})

@@ -335,6 +335,9 @@ pub struct RenderSample {
     pub spp: u32,
     /// Seed of the renderer's per-pixel random numbers.
     pub seed: u32,
+    /// The appendix passes to write (absent in samples expanded before they existed: none).
+    #[serde(default)]
+    pub passes: Vec<String>,
 }
 
 /// Expands sample `index` of the dataset. `index` must be below `spec.count`.
@@ -476,6 +479,7 @@ pub fn expand(spec: &ResolvedSpec, index: u64) -> Result<SampleSpec, SceneError>
             height: spec.height,
             spp: spec.spp,
             seed,
+            passes: spec.passes.clone(),
         },
     })
 }

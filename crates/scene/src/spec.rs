@@ -54,6 +54,9 @@ pub struct DatasetSpec {
     /// Samples per pixel per lighting.
     #[serde(default = "default_spp")]
     pub spp: i64,
+    /// The appendix passes each sample adds (names from [`PASS_NAMES`]; `[]` for none).
+    #[serde(default = "default_passes")]
+    pub passes: Vec<String>,
     #[serde(default)]
     pub assets: AssetsSpec,
     #[serde(default)]
@@ -73,6 +76,19 @@ fn default_resolution() -> i64 {
 
 fn default_spp() -> i64 {
     256
+}
+
+/// Every optional pass a sample can carry (the renderer's `lightfarm_render::passes::Pass`
+/// names; a subject test keeps the two lists equal).
+pub const PASS_NAMES: [&str; 7] = [
+    "diffuse", "specular", "sss", "coat", "sheen", "shadow", "id",
+];
+
+/// The passes a spec gets unless it says otherwise.
+pub const DEFAULT_PASSES: [&str; 4] = ["diffuse", "specular", "shadow", "id"];
+
+fn default_passes() -> Vec<String> {
+    DEFAULT_PASSES.iter().map(|s| s.to_string()).collect()
 }
 
 /// `[assets]`: catalog selectors per asset kind (see `Catalog::select`: `"*"`, an asset id, or
@@ -224,6 +240,8 @@ pub struct ResolvedSpec {
     pub width: u32,
     pub height: u32,
     pub spp: u32,
+    /// The passes of every sample, in [`PASS_NAMES`] order without duplicates.
+    pub passes: Vec<String>,
     /// All selected identities, sorted by name (the order `expand` draws from).
     pub identities: Vec<Identity>,
     /// Selected HDRIs, at least two, in catalog order without duplicates.
@@ -301,6 +319,22 @@ impl DatasetSpec {
         let width = int_in("width", self.width, 1, MAX_RESOLUTION, &bad)?;
         let height = int_in("height", self.height, 1, MAX_RESOLUTION, &bad)?;
         let spp = int_in("spp", self.spp, 1, MAX_SPP, &bad)?;
+        for p in &self.passes {
+            if !PASS_NAMES.contains(&p.as_str()) {
+                return Err(bad(
+                    "passes",
+                    format!(
+                        "has unknown pass '{p}': use any of {} (or [] for none)",
+                        PASS_NAMES.join(", ")
+                    ),
+                ));
+            }
+        }
+        let passes: Vec<String> = PASS_NAMES
+            .iter()
+            .filter(|n| self.passes.iter().any(|p| p == *n))
+            .map(|n| n.to_string())
+            .collect();
 
         // Camera. Pitch stays strictly inside ±90° because the look-at frame uses +Y as up and
         // degenerates at the poles.
@@ -469,6 +503,7 @@ impl DatasetSpec {
             width: u32::try_from(width).unwrap_or(u32::MAX),
             height: u32::try_from(height).unwrap_or(u32::MAX),
             spp: u32::try_from(spp).unwrap_or(u32::MAX),
+            passes,
             identities,
             hdris: hdris.iter().map(|a| AssetRef::of(a)).collect(),
             garments: garments.iter().map(|a| AssetRef::of(a)).collect(),

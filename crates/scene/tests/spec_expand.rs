@@ -363,6 +363,10 @@ fn bad_specs_name_their_key() {
         ("count", example_with("count = 1000", "count = 10000001")),
         ("width", example_with("width = 512", "width = 0")),
         ("spp", example_with("spp = 256", "spp = 0")),
+        (
+            "passes",
+            example_with("spp = 256", "spp = 256\npasses = [\"diffuse\", \"albedo\"]"),
+        ),
         ("name", example_with("name = \"demo\"", "name = \"\"")),
         (
             "subject.glasses_probability",
@@ -504,4 +508,22 @@ fn ks_uniform(v: &[f64], lo: f64, hi: f64) -> (f64, f64) {
         })
         .sum();
     (d, q.clamp(0.0, 1.0))
+}
+
+/// `passes` defaults to the four, is kept in the renderer's order without duplicates,
+/// and `[]` turns them off; it reaches every sample's render settings.
+#[test]
+fn passes_default_order_and_none() {
+    let text = example_with("count = 1000", "count = 3");
+    let spec = resolve(&text).expect("spec");
+    assert_eq!(spec.passes, ["diffuse", "specular", "shadow", "id"]);
+    let sample = lightfarm_scene::expand::expand(&spec, 1).expect("expand");
+    assert_eq!(sample.render.passes, spec.passes);
+    let text = example_with(
+        "spp = 256",
+        "spp = 256\npasses = [\"id\", \"sss\", \"sss\", \"coat\"]",
+    );
+    assert_eq!(resolve(&text).expect("spec").passes, ["sss", "coat", "id"]);
+    let text = example_with("spp = 256", "spp = 256\npasses = []");
+    assert!(resolve(&text).expect("spec").passes.is_empty());
 }

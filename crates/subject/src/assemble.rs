@@ -4,15 +4,16 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use glam::{Mat4, Quat, Vec3};
-use lightfarm_render::scene::{Camera, Material, Scene};
+use lightfarm_render::passes::Pass;
+use lightfarm_render::scene::{Camera, Material, MaterialModel, ObjectClass, Scene};
 use lightfarm_scene::catalog::{Asset, AssetKind, Catalog};
 use lightfarm_scene::expand::SampleSpec;
 
 use crate::garment::{Body, CoverMap, GarmentFit};
-use crate::glasses::place_glasses;
+use crate::glasses::{glasses_materials, place_glasses};
 use crate::hair::{grow_eyebrows, grow_hair, hair_albedo, Strands};
 use crate::head::Head;
-use crate::headset::fit_headset;
+use crate::headset::{fit_headset, headset_materials};
 use crate::landmarks::Landmarks;
 use crate::SubjectError;
 
@@ -32,6 +33,8 @@ pub struct Assembled {
     pub height: u32,
     pub spp: u32,
     pub seed: u32,
+    /// The appendix passes the sample asks for.
+    pub passes: Vec<Pass>,
     pub stats: AssemblyStats,
 }
 
@@ -91,6 +94,7 @@ pub fn append_scene(dst: &mut Scene, src: &Scene, transform: Mat4) {
             &mut m.base_color_texture,
             &mut m.metallic_roughness_texture,
             &mut m.normal_texture,
+            &mut m.specular_texture,
         ]
         .into_iter()
         .flatten()
@@ -218,9 +222,11 @@ fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> usize 
     removed
 }
 
+/// Strand hair and eyebrows: the glTF model (a dielectric fibre), class hair.
 fn strand_material(name: &str, albedo: [f32; 3], roughness: f32) -> Material {
     Material {
         name: name.to_owned(),
+        class: ObjectClass::Hair,
         base_color: [albedo[0], albedo[1], albedo[2], 1.0],
         metallic: 0.0,
         roughness,
@@ -260,6 +266,11 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
             None => GarmentFit::by_eyes(&fitted, fitted_eyes, lm.eye_centre()),
         };
         for m in garment.materials.iter_mut() {
+            // The cloth preset first (class garment), then the sampled look, as before.
+            if m.model == MaterialModel::Gltf {
+                m.apply_model(MaterialModel::Cloth);
+            }
+            m.class = ObjectClass::Garment;
             let [r, g_, b] = g.color_rgb.map(|v| v as f32);
             m.base_color = [r, g_, b, 1.0];
             m.base_color_texture = None;
@@ -297,13 +308,15 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
 
     if let Some(g) = &sample.glasses {
         let (asset, path) = resolve(catalog, &g.id, &g.blake3, AssetKind::Glasses)?;
-        let glasses = load_scene(&path, asset)?;
+        let mut glasses = load_scene(&path, asset)?;
+        glasses_materials(&mut glasses);
         let placed = place_glasses(&glasses, &lm, &head.surface)?;
         append_scene(&mut parts, &placed, Mat4::IDENTITY);
     }
     if let Some(h) = &sample.headset {
         let (asset, path) = resolve(catalog, &h.id, &h.blake3, AssetKind::Headset)?;
-        let headset = load_scene(&path, asset)?;
+        let mut headset = load_scene(&path, asset)?;
+        headset_materials(&mut headset);
         let fit = fit_headset(&headset, &lm).map_err(|reason| SubjectError::Asset {
             asset: asset.id.clone(),
             reason,
@@ -332,6 +345,10 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
         height: sample.render.height,
         spp: sample.render.spp,
         seed: sample.render.seed,
+        passes: Pass::parse_list(&sample.render.passes).map_err(|reason| SubjectError::Asset {
+            asset: "render.passes".into(),
+            reason,
+        })?,
         stats,
     })
 }

@@ -8,7 +8,9 @@
 //! eye distance).
 
 use glam::{DVec3, Mat3, Mat4, Vec2, Vec3};
-use lightfarm_render::scene::{shapes, Instance, Material, Mesh, Scene};
+use lightfarm_render::scene::{
+    shapes, Instance, Material, MaterialModel, Mesh, ObjectClass, Scene,
+};
 
 use crate::{HeadSurface, Landmarks, SubjectError};
 
@@ -119,6 +121,10 @@ pub fn procedural_glasses(style: FrameStyle) -> Scene {
     scene
 }
 
+// Models and classes set here live in memory only: `write_glb` writes glTF factors, so the
+// generated files (and their catalog hashes) do not carry them; `glasses_materials` sets them
+// again on whatever glasses file is loaded.
+
 fn gold() -> Material {
     Material {
         name: "frame_metal_gold".to_string(),
@@ -126,6 +132,8 @@ fn gold() -> Material {
         base_color: [1.0, 0.766, 0.336, 1.0],
         metallic: 1.0,
         roughness: 0.3,
+        model: MaterialModel::Metal,
+        class: ObjectClass::Frame,
         ..Material::default()
     }
 }
@@ -136,6 +144,8 @@ fn dark_plastic(name: &str, roughness: f32) -> Material {
         base_color: [0.018, 0.012, 0.010, 1.0],
         metallic: 0.0,
         roughness,
+        model: MaterialModel::Plastic,
+        class: ObjectClass::Frame,
         ..Material::default()
     }
 }
@@ -146,6 +156,8 @@ fn silicone() -> Material {
         base_color: [0.75, 0.75, 0.72, 1.0],
         metallic: 0.0,
         roughness: 0.35,
+        model: MaterialModel::Plastic,
+        class: ObjectClass::Frame,
         ..Material::default()
     }
 }
@@ -158,7 +170,31 @@ fn lens_material() -> Material {
         roughness: 0.0,
         transmission: 1.0,
         ior: 1.5,
+        model: MaterialModel::Lens,
+        class: ObjectClass::Lens,
         ..Material::default()
+    }
+}
+
+/// Gives a glasses model's materials their models and classes: the lenses ([`lens_materials`])
+/// become `lens` / class lens, the rest frame parts (class frame): `metal` when the file's
+/// metalness is at least 0.5, else `plastic` (silicone pads included). Both presets keep the
+/// file's colour and roughness, so the frames look as before. A material whose file carries
+/// `extras.lightfarm` keeps its model; its class is still the part's role.
+pub fn glasses_materials(scene: &mut Scene) {
+    let is_lens = lens_materials(scene);
+    for (m, lens) in scene.materials.iter_mut().zip(is_lens) {
+        let (model, class) = if lens {
+            (MaterialModel::Lens, ObjectClass::Lens)
+        } else if m.metallic >= 0.5 {
+            (MaterialModel::Metal, ObjectClass::Frame)
+        } else {
+            (MaterialModel::Plastic, ObjectClass::Frame)
+        };
+        if m.model == MaterialModel::Gltf {
+            m.apply_model(model);
+        }
+        m.class = class;
     }
 }
 

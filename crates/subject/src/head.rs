@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use glam::{Mat4, Vec3};
-use lightfarm_render::scene::Scene;
+use lightfarm_render::scene::{MaterialModel, ObjectClass, Scene};
 use lightfarm_scene::catalog::Asset;
 
 use crate::landmarks::{HeadSurface, Landmarks};
@@ -17,6 +17,41 @@ const SKIN_NAMES: [&str; 1] = ["skin"];
 /// Material names of eyeballs, in order of preference: the sclera/eyeball mesh gives the
 /// eyeball centre; a cornea bulges forward, so it is used only when nothing else is there.
 const EYE_NAMES: [&[&str]; 2] = [&["sclera", "eyes", "eyeball"], &["cornea", "iris"]];
+
+/// The model and class of a built-in head's material, by lower-cased material name
+/// (MakeHuman: skin, eyes, cornea, teeth, tongue; ICT FaceKit: skin, gums_tongue, teeth,
+/// sclera, iris, eyelashes; the Lee Perry-Smith scan: LeePerrySmith_skin). A `None` model keeps
+/// the glTF one and only sets the class; corneas and unknown names are not mapped at all.
+fn head_material(name: &str) -> Option<(Option<MaterialModel>, ObjectClass)> {
+    use MaterialModel as M;
+    use ObjectClass as C;
+    Some(match name {
+        "skin" | "leeperrysmith_skin" => (Some(M::Skin), C::Skin),
+        "eyes" | "sclera" | "iris" => (Some(M::Eye), C::Eyes),
+        "teeth" => (Some(M::Teeth), C::Mouth),
+        "tongue" | "gums_tongue" => (Some(M::Mouth), C::Mouth),
+        "eyelashes" => (None, C::Hair),
+        _ => return None,
+    })
+}
+
+/// Gives the head's materials their models ([`head_material`], presets of
+/// [`lightfarm_render::scene::Material::apply_model`]) and classes. A material whose file
+/// carries `extras.lightfarm` (its model is no longer glTF) is left as the file says, and so is
+/// any name not in the table.
+pub fn assign_head_materials(scene: &mut Scene) {
+    for m in scene.materials.iter_mut() {
+        if m.model != MaterialModel::Gltf {
+            continue;
+        }
+        if let Some((model, class)) = head_material(&m.name.to_ascii_lowercase()) {
+            if let Some(model) = model {
+                m.apply_model(model);
+            }
+            m.class = class;
+        }
+    }
+}
 
 /// A loaded head, every mesh already moved into the canonical frame.
 #[derive(Clone, Debug)]
@@ -43,14 +78,16 @@ fn material_matches(scene: &Scene, material: u32, names: &[&str]) -> bool {
 }
 
 impl Head {
-    /// Loads `asset` (a head file at `path`), applies the expression's morph weights (unknown
-    /// morph names are an error naming them), and moves it into the canonical frame.
+    /// Loads `asset` (a head file at `path`), gives its materials their models
+    /// ([`assign_head_materials`]), applies the expression's morph weights (unknown morph names
+    /// are an error naming them), and moves it into the canonical frame.
     pub fn load(
         asset: &Asset,
         path: &Path,
         expression: &BTreeMap<String, f64>,
     ) -> Result<Head, SubjectError> {
         let mut scene = Scene::load_gltf(path)?;
+        assign_head_materials(&mut scene);
         if scene.instances.is_empty() {
             return Err(asset_error(asset, "the file has no mesh instances"));
         }

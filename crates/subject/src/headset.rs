@@ -1,7 +1,7 @@
-//! Fitting an over-ear headset to the ears.
+//! Fitting an over-ear headset to the ears, and the models of its materials.
 
 use glam::{Mat4, Vec3};
-use lightfarm_render::scene::Scene;
+use lightfarm_render::scene::{MaterialModel, ObjectClass, Scene};
 
 use crate::landmarks::Landmarks;
 
@@ -71,4 +71,20 @@ pub fn fit_headset(scene: &Scene, lm: &Landmarks) -> Result<Mat4, String> {
     Ok(Mat4::from_translation(target)
         * Mat4::from_scale(Vec3::new(sx, sy, 1.0))
         * Mat4::from_translation(-cup_centre))
+}
+
+/// Gives a headset's materials class headset and, unless the file's `extras.lightfarm` named a
+/// model, the `metal` model (metalness at least 0.5) or `plastic` (everything else: shells,
+/// cushions); both keep the file's colour and roughness.
+pub fn headset_materials(scene: &mut Scene) {
+    for m in scene.materials.iter_mut() {
+        if m.model == MaterialModel::Gltf {
+            m.apply_model(if m.metallic >= 0.5 {
+                MaterialModel::Metal
+            } else {
+                MaterialModel::Plastic
+            });
+        }
+        m.class = ObjectClass::Headset;
+    }
 }

@@ -40,6 +40,7 @@ pub fn settings(assembled: &Assembled) -> RenderSettings {
         width: assembled.width,
         height: assembled.height,
         spp: assembled.spp,
+        passes: assembled.passes.clone(),
         seed: assembled.seed,
         max_depth: MAX_DEPTH,
         rr_depth: RR_DEPTH,

@@ -174,13 +174,15 @@ fn rendered_samples_look_like_portraits() {
             (away as f32) < 0.03 * covered as f32,
             "sample {index}: {away}/{covered} normals face away"
         );
-        // Glasses: the lens pass is non-empty and lies in the upper-middle of the image.
+        // Glasses: normal_lens differs from normal on the lenses, which lie in the upper-middle
+        // of the image; elsewhere it is the normal.
         if sample.glasses.is_some() {
             let lens: Vec<(usize, usize)> = out
                 .normal_lens
                 .iter()
+                .zip(&out.normal)
                 .enumerate()
-                .filter(|(_, v)| v.iter().any(|c| *c != 0.0))
+                .filter(|(_, (nl, n))| nl != n)
                 .map(|(i, _)| (i % a.width as usize, i / a.width as usize))
                 .collect();
             assert!(

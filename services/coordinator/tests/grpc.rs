@@ -180,7 +180,26 @@ fn assert_exr_holds(exr: &[u8], want: &lightfarm_render::RenderOutput, what: &st
     split3("albedo", ["R", "G", "B"], &want.albedo);
     split3("normal", ["X", "Y", "Z"], &want.normal);
     split3("normal_lens", ["X", "Y", "Z"], &want.normal_lens);
+    // The dataset's appendix passes (the spec's default set).
+    for (l, lp) in want.passes.iter().enumerate() {
+        for p in &want.pass_set {
+            if let Some(img) = lp.rgb(*p) {
+                split3(&format!("{}{l}", p.name()), ["R", "G", "B"], img);
+            }
+        }
+    }
     expected.push(("mask.A".into(), want.mask.clone()));
+    for (l, lp) in want.passes.iter().enumerate() {
+        if want
+            .pass_set
+            .contains(&lightfarm_render::passes::Pass::Shadow)
+        {
+            expected.push((format!("shadow{l}.A"), lp.shadow.clone()));
+        }
+    }
+    if want.pass_set.contains(&lightfarm_render::passes::Pass::Id) {
+        expected.push(("id.A".into(), want.id.iter().map(|v| *v as f32).collect()));
+    }
 
     let mut names: Vec<&String> = expected.iter().map(|(n, _)| n).collect();
     names.sort();

@@ -115,9 +115,9 @@ pub async fn run(
 }
 
 /// Renders `sample` (whose JSON is `sample_json`) and writes the sample EXR to `path`;
-/// returns the render statistics as JSON. The EXR has one header attribute (renderer and
-/// sample), so its bytes are a pure function of the sample and the device: render times go
-/// to the index, not the file, and a re-render is bit-identical.
+/// returns the render statistics as JSON. The EXR has one header attribute (renderer, sample
+/// and the assembled scene's materials), so its bytes are a pure function of the sample and
+/// the device: render times go to the index, not the file, and a re-render is bit-identical.
 pub fn render_to_exr(
     renderer: &Renderer,
     catalog: &lightfarm_scene::Catalog,
@@ -130,6 +130,10 @@ pub fn render_to_exr(
     let meta = serde_json::json!({
         "renderer": RENDERER_VERSION,
         "sample": serde_json::from_str::<serde_json::Value>(sample_json)?,
+        // Every material of the assembled scene (models, classes, all parameters).
+        "materials": lightfarm_render::scene::materials_json(&assembled.scene),
+        // What the id pass's values mean (here, not as a second attribute: see id_table_json).
+        "id_table": serde_json::from_str::<serde_json::Value>(&lightfarm_render::output::id_table_json())?,
     });
     write_exr(
         path,

@@ -98,13 +98,15 @@ pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainErro
             "{SAMPLE_ATTRIBUTE} holds no valid sample spec ({e})"
         ))
     })?;
+    let normal = rgb("normal", ["X", "Y", "Z"])?;
+    let normal_lens = lens_normals(&normal, rgb("normal_lens", ["X", "Y", "Z"])?);
     Ok(SampleImages {
         width,
         height,
         lit: [rgb("lit0", ["R", "G", "B"])?, rgb("lit1", ["R", "G", "B"])?],
         albedo: rgb("albedo", ["R", "G", "B"])?,
-        normal: rgb("normal", ["X", "Y", "Z"])?,
-        normal_lens: rgb("normal_lens", ["X", "Y", "Z"])?,
+        normal,
+        normal_lens,
         mask: channel("mask.A")?
             .into_iter()
             .map(|v| {
@@ -117,4 +119,29 @@ pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainErro
             .collect(),
         spec,
     })
+}
+
+/// The normal with lenses, N_l: the lens normal where a lens covers the pixel, the normal
+/// elsewhere. Samples rendered before lightfarm wrote it that way have zeros off the lenses;
+/// those pixels take the normal, so f_N is never asked for a unit vector against a zero target.
+pub fn lens_normals(normal: &[[f32; 3]], mut normal_lens: Vec<[f32; 3]>) -> Vec<[f32; 3]> {
+    for (nl, n) in normal_lens.iter_mut().zip(normal) {
+        if *nl == [0.0; 3] {
+            *nl = *n;
+        }
+    }
+    normal_lens
+}
+
+#[cfg(test)]
+mod tests {
+    use super::lens_normals;
+
+    #[test]
+    fn zero_lens_normals_of_older_samples_take_the_normal() {
+        let normal = vec![[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0; 3]];
+        let lens = vec![[0.0; 3], [0.0, 0.6, 0.8], [0.0; 3]];
+        let got = lens_normals(&normal, lens);
+        assert_eq!(got, vec![[0.0, 0.0, 1.0], [0.0, 0.6, 0.8], [0.0; 3]]);
+    }
 }

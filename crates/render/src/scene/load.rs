@@ -1,6 +1,6 @@
 //! glTF 2.0 (.glb / .gltf) to [`Scene`]: default scene's node tree, merged triangle primitives
-//! per mesh, metallic-roughness materials with the specular/transmission/ior extensions,
-//! images as RGBA8 and perspective cameras.
+//! per mesh, metallic-roughness materials with the specular/transmission/ior extensions and
+//! `extras.lightfarm` ([`super::material`]), images as RGBA8 and perspective cameras.
 
 use std::path::Path;
 
@@ -31,7 +31,10 @@ pub(crate) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
         .enumerate()
         .map(|(index, img)| to_rgba8(img).map_err(|reason| bad_texture(path, index, reason)))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut materials: Vec<Material> = doc.materials().map(convert_material).collect();
+    let mut materials: Vec<Material> = doc
+        .materials()
+        .map(|m| convert_material(m, path))
+        .collect::<Result<_, _>>()?;
 
     // Lazily appended so files whose primitives all have materials carry no extra entry.
     let mut default_material: Option<u32> = None;
@@ -196,7 +199,9 @@ fn convert_camera(cam: &gltf::Camera, global: Mat4) -> Option<Camera> {
     })
 }
 
-fn convert_material(m: gltf::Material) -> Material {
+/// The glTF material `m` of the file at `path`, with its `extras.lightfarm` applied (see
+/// [`super::material`]); a bad `extras.lightfarm` is an error.
+fn convert_material(m: gltf::Material, path: &Path) -> Result<Material, SceneError> {
     let pbr = m.pbr_metallic_roughness();
     // Scene::textures holds one entry per glTF image, so a texture resolves to its image.
     let tex = |info: Option<gltf::texture::Info>| {
@@ -213,7 +218,7 @@ fn convert_material(m: gltf::Material) -> Material {
         .map(|s| (s.specular_factor(), s.specular_color_factor()))
         .unwrap_or((defaults.specular, defaults.specular_color));
     let normal = m.normal_texture();
-    Material {
+    let mut material = Material {
         name: m
             .name()
             .map(str::to_string)
@@ -243,7 +248,12 @@ fn convert_material(m: gltf::Material) -> Material {
                 }
             }
         },
+        ..defaults
+    };
+    if let Some(extras) = m.extras() {
+        super::material::apply_extras(&mut material, extras.get(), path)?;
     }
+    Ok(material)
 }
 
 /// Merges the triangle primitives of `mesh`; `None` when it has none.

@@ -5,6 +5,7 @@ mod camera;
 pub mod export;
 mod geometry;
 mod load;
+pub mod material;
 mod morph;
 pub mod shapes;
 
@@ -14,6 +15,7 @@ use glam::{Mat4, Vec3};
 
 pub use camera::Camera;
 pub use export::write_glb;
+pub use material::{materials_json, MaterialRecord};
 
 /// Everything that can go wrong building a [`Scene`]; each variant names its input and says
 /// what the user can do about it.
@@ -52,6 +54,18 @@ pub enum SceneError {
     Export { path: PathBuf, reason: String },
     #[error("mesh '{mesh}': cannot apply morph weights: {reason}")]
     BadMorph { mesh: String, reason: String },
+    #[error(
+        "{}: material '{material}': {key} {reason}; fix the material's extras.lightfarm \
+         (the schema is in README.md, Materials)",
+        path.display()
+    )]
+    BadMaterial {
+        path: PathBuf,
+        material: String,
+        /// The offending key as a path, e.g. `extras.lightfarm.subsurface_radius`.
+        key: String,
+        reason: String,
+    },
 }
 
 /// One BLAS: all triangle primitives of one glTF mesh, merged.
@@ -130,6 +144,113 @@ pub struct Material {
     /// Coverage in [0, 1] (glTF alpha): 1 for OPAQUE, the base-colour alpha for BLEND, 0 or 1 by
     /// the cutoff for MASK. Rendered as stochastic see-through (MakeHuman's corneas are BLEND 0.08).
     pub opacity: f32,
+    /// Which surface model renders this material: [`MaterialModel::Gltf`] (the glTF
+    /// metallic-roughness mapping) unless the file's `extras.lightfarm` names another. The
+    /// layered models read every field below with Standard Surface semantics: `base_color`
+    /// (× texture) is the diffuse colour, `metallic` the metalness, `roughness` the specular
+    /// roughness, `specular` / `specular_color` / `ior` the dielectric specular layer.
+    pub model: MaterialModel,
+    /// What the `id` pass reports for pixels of this material.
+    pub class: ObjectClass,
+    /// Standard Surface `subsurface`: the fraction of the base that scatters below the surface
+    /// (random walk) rather than diffusely at it.
+    pub subsurface: f32,
+    /// `subsurface_color`; `None` uses the base colour (with its texture), as the paper's skin.
+    pub subsurface_color: Option<[f32; 3]>,
+    /// `subsurface_radius`: mean free path per channel, in units of `subsurface_scale`.
+    pub subsurface_radius: [f32; 3],
+    /// `subsurface_scale` in scene units (metres): the paper's 0.225 cm is 0.00225.
+    pub subsurface_scale: f32,
+    /// `subsurface_anisotropy`: Henyey–Greenstein g of the medium, in (-1, 1).
+    pub subsurface_anisotropy: f32,
+    /// `coat` weight, `coat_color`, `coat_roughness`, `coat_IOR`: a clear GGX layer on top.
+    pub coat: f32,
+    pub coat_color: [f32; 3],
+    pub coat_roughness: f32,
+    pub coat_ior: f32,
+    /// `sheen` weight, `sheen_color`, `sheen_roughness`: a Charlie sheen over the base.
+    pub sheen: f32,
+    pub sheen_color: [f32; 3],
+    pub sheen_roughness: f32,
+    /// A map multiplying `specular` (its red channel, linear), e.g. a scan's specular albedo.
+    pub specular_texture: Option<u32>,
+}
+
+/// The surface models a material can name in `extras.lightfarm.model`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MaterialModel {
+    /// The glTF 2.0 metallic-roughness mapping (Lambert + GGX, KHR_materials_specular).
+    #[default]
+    Gltf,
+    /// The paper's aiStandardSurface skin: random-walk subsurface, specular, coat, sheen.
+    Skin,
+    /// Eyes: base colour, glossy specular, a coat; no subsurface, no sheen.
+    Eye,
+    /// Gums, tongue, inner mouth: wet, short-radius subsurface.
+    Mouth,
+    /// Teeth: a little subsurface under a glossy enamel specular.
+    Teeth,
+    /// Garments: diffuse + GGX with the file's colour and roughness.
+    Cloth,
+    /// Glossy plastic (glasses frames, headsets).
+    Plastic,
+    /// Metal: F0 = base colour.
+    Metal,
+    /// Eyeglass lens: the smooth dielectric.
+    Lens,
+}
+
+impl MaterialModel {
+    /// Index the shaders switch on (`MODEL_*` in shaders/inc/bindings.wgsl): 0 is the glTF
+    /// mapping, anything else the layered Standard Surface.
+    pub fn gpu_index(self) -> u32 {
+        self as u32
+    }
+}
+
+/// Object classes of the `id` pass (the table is written into every EXR header).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ObjectClass {
+    #[default]
+    Other = 0,
+    Skin = 1,
+    Eyes = 2,
+    Mouth = 3,
+    Hair = 4,
+    Garment = 5,
+    Frame = 6,
+    Lens = 7,
+    Headset = 8,
+}
+
+impl ObjectClass {
+    pub const ALL: [ObjectClass; 9] = [
+        ObjectClass::Other,
+        ObjectClass::Skin,
+        ObjectClass::Eyes,
+        ObjectClass::Mouth,
+        ObjectClass::Hair,
+        ObjectClass::Garment,
+        ObjectClass::Frame,
+        ObjectClass::Lens,
+        ObjectClass::Headset,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ObjectClass::Other => "other",
+            ObjectClass::Skin => "skin",
+            ObjectClass::Eyes => "eyes",
+            ObjectClass::Mouth => "mouth",
+            ObjectClass::Hair => "hair",
+            ObjectClass::Garment => "garment",
+            ObjectClass::Frame => "frame",
+            ObjectClass::Lens => "lens",
+            ObjectClass::Headset => "headset",
+        }
+    }
 }
 
 impl Default for Material {
@@ -150,6 +271,21 @@ impl Default for Material {
             ior: 1.5,
             double_sided: false,
             opacity: 1.0,
+            model: MaterialModel::Gltf,
+            class: ObjectClass::Other,
+            subsurface: 0.0,
+            subsurface_color: None,
+            subsurface_radius: [1.0; 3],
+            subsurface_scale: 0.01,
+            subsurface_anisotropy: 0.0,
+            coat: 0.0,
+            coat_color: [1.0; 3],
+            coat_roughness: 0.1,
+            coat_ior: 1.5,
+            sheen: 0.0,
+            sheen_color: [1.0; 3],
+            sheen_roughness: 0.3,
+            specular_texture: None,
         }
     }
 }

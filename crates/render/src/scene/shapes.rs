@@ -141,6 +141,46 @@ pub fn quad(width: f32, height: f32) -> Mesh {
     }
 }
 
+/// Closed axis-aligned box centred at the origin with side lengths `size`: six faces of two
+/// triangles each, flat outward normals (a semi-infinite slab for subsurface tests when it is large against the
+/// medium's mean free path).
+pub fn cuboid(size: Vec3) -> Mesh {
+    let h = size * 0.5;
+    let mut m = Mesh {
+        name: "cuboid".to_string(),
+        positions: Vec::new(),
+        normals: Vec::new(),
+        uvs: Vec::new(),
+        tangents: Vec::new(),
+        indices: Vec::new(),
+        triangle_materials: Vec::new(),
+        morph_targets: Vec::new(),
+    };
+    // (normal, tangent u, bitangent v): corners n·h ± u·h ± v·h, counter-clockwise seen from outside.
+    let faces = [
+        (Vec3::X, Vec3::NEG_Z, Vec3::Y),
+        (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+        (Vec3::Y, Vec3::X, Vec3::NEG_Z),
+        (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+        (Vec3::Z, Vec3::X, Vec3::Y),
+        (Vec3::NEG_Z, Vec3::NEG_X, Vec3::Y),
+    ];
+    for (n, u, v) in faces {
+        let base = m.positions.len() as u32;
+        for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+            let p = n * h + u * h * a + v * h * b;
+            m.positions.push(p.to_array());
+            m.normals.push(n.to_array());
+            m.uvs.push([(a + 1.0) * 0.5, (1.0 - b) * 0.5]);
+            m.tangents.push([u.x, u.y, u.z, 1.0]);
+        }
+        m.indices
+            .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+    }
+    m.triangle_materials = vec![0; m.indices.len() / 3];
+    m
+}
+
 #[derive(Default)]
 struct Builder {
     positions: Vec<[f32; 3]>,

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod bsdf_ref;
+pub mod sphere_chi2;
 
 use std::sync::{Arc, OnceLock};
 
@@ -82,6 +83,7 @@ pub fn render(scene: &Scene, lights: &[EnvLight], size: u32, spp: u32, seed: u32
         max_depth: 8,
         rr_depth: 5,
         camera: front_camera(),
+        passes: Vec::new(),
     };
     renderer()
         .render(&packed, lights, &settings, &mut |_| {})
