@@ -304,15 +304,17 @@ def main():
     print(json.dumps(results), file=sys.stderr)
 
 
-def make_skin_head(src, dst):
-    """The scan's GLB with `extras.lightfarm = {model: skin}` on its material, scaled to metres
-    and centred like the catalog's frame (0.046 m per unit)."""
+def make_skin_head(src, dst, skin=True):
+    """The scan's GLB with `extras.lightfarm = {model: skin}` on its material (or as it is, the
+    glTF Lambert + GGX mapping, when `skin` is false), scaled to metres (0.046 m per unit, as
+    the catalog's frame) and centred."""
     data = open(src, "rb").read()
     jlen = struct.unpack("<I", data[12:16])[0]
     doc = json.loads(data[20:20 + jlen])
     rest = data[20 + jlen:]
     for m in doc["materials"]:
-        m["extras"] = {"lightfarm": {"model": "skin"}}
+        if skin:
+            m["extras"] = {"lightfarm": {"model": "skin"}}
     bmin, bmax = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]["min"], \
         doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]["max"]
     s = 0.046

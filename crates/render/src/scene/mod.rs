@@ -6,6 +6,7 @@ pub mod export;
 mod geometry;
 mod load;
 pub mod material;
+mod material_record;
 mod morph;
 pub mod shapes;
 
@@ -15,7 +16,7 @@ use glam::{Mat4, Vec3};
 
 pub use camera::Camera;
 pub use export::write_glb;
-pub use material::{materials_json, MaterialRecord};
+pub use material_record::{materials_json, MaterialRecord};
 
 /// Everything that can go wrong building a [`Scene`]; each variant names its input and says
 /// what the user can do about it.

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod bsdf_ref;
+pub mod gltf_files;
 pub mod sphere_chi2;
 
 use std::sync::{Arc, OnceLock};
