@@ -304,10 +304,11 @@ def main():
     print(json.dumps(results), file=sys.stderr)
 
 
-def make_skin_head(src, dst, skin=True):
+def make_skin_head(src, dst, skin=True, maps=False):
     """The scan's GLB with `extras.lightfarm = {model: skin}` on its material (or as it is, the
     glTF Lambert + GGX mapping, when `skin` is false), scaled to metres (0.046 m per unit, as
-    the catalog's frame) and centred."""
+    the catalog's frame) and centred. Without `maps` the normal and specular maps are dropped
+    (the Cycles scene has neither, and the head rendered with neither before issue 12)."""
     data = open(src, "rb").read()
     jlen = struct.unpack("<I", data[12:16])[0]
     doc = json.loads(data[20:20 + jlen])
@@ -315,6 +316,9 @@ def make_skin_head(src, dst, skin=True):
     for m in doc["materials"]:
         if skin:
             m["extras"] = {"lightfarm": {"model": "skin"}}
+        if not maps:
+            m.pop("normalTexture", None)
+            m.pop("extensions", None)
     bmin, bmax = doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]["min"], \
         doc["accessors"][doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]]["max"]
     s = 0.046

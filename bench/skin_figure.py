@@ -1,5 +1,6 @@
 """The README figure: the Lee Perry-Smith scan under two HDRIs, with the glTF Lambert + GGX
-mapping it rendered with before issue 12 (top) and with the paper's skin (bottom).
+mapping it rendered with before issue 12 (top; colour map only) and with the paper's skin and
+the scan's normal and specular maps (bottom).
 
     python bench/skin_figure.py --lightfarm $CARGO_TARGET_DIR/debug/lightfarm --out docs/skin.png
 
@@ -33,7 +34,7 @@ def main():
     tiles = []
     for skin in (False, True):
         scene = os.path.join(args.work, f"head_{'skin' if skin else 'gltf'}.glb")
-        make_skin_head(src, scene, skin)
+        make_skin_head(src, scene, skin, maps=skin)
         row = []
         for k, h in enumerate(hdris):
             png = os.path.join(args.work, f"{'skin' if skin else 'gltf'}_{k}.png")

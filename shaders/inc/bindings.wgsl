@@ -11,7 +11,7 @@ struct Params {
     rr_depth: u32,
     num_lights: u32,
     tlas_node_offset: u32, // NO_NODE when the scene is empty
-    scene_flags: u32,      // SCENE_HAS_LENS
+    scene_flags: u32,      // SCENE_HAS_LENS (some material is MAT_FLAG_CLEAR)
     _pad0: u32,
     _pad1: u32,
     _pad2: u32,
@@ -36,7 +36,7 @@ struct Material {
     mrst: vec4<f32>,
     // specular colour rgb, ior
     spec_color_ior: vec4<f32>,
-    // base texture, metallic-roughness texture, normal texture, flags (NO_TEX when absent)
+    // base texture, metallic-roughness texture, normal texture (NO_TEX when absent), flags (MAT_FLAG_*)
     tex: vec4<u32>,
     // normal scale, opacity (coverage; < 1 is stochastically see-through), unused x2
     extra: vec4<f32>,
@@ -51,7 +51,7 @@ struct Material {
     coat_sheen: vec4<f32>,
     // sheen colour rgb, unused
     sheen_color: vec4<f32>,
-    // specular-weight texture (NO_TEX when absent), model (MODEL_*), object class (id pass), unused
+    // specular-weight texture (its A channel; NO_TEX when absent), model (MODEL_*), object class (id pass), unused
     tex2: vec4<u32>,
 };
 
@@ -75,7 +75,7 @@ struct Push {
     sample_count: u32,
     light: u32,
     write_aux: u32,
-    mode: u32,   // probe / test kernels: what to run
+    mode: u32,   // probe / test kernels: what to run; integrator: the stage (STAGE_*)
     count: u32,  // probe / test kernels: how many items
     mutate: u32, // probe kernel: 0, or 1 + axis of a deliberately biased sampler (tests only)
     passes: u32, // integrator: 1 = accumulate the appendix passes of `light` into probe_out
@@ -83,7 +83,9 @@ struct Push {
 
 const NO_NODE: u32 = 0xffffffffu;
 const NO_TEX: u32 = 0xffffffffu;
-const MAT_FLAG_LENS: u32 = 1u;
+const MAT_FLAG_LENS: u32 = 1u; // transmissive, bounds a refracting solid (a lens)
+const MAT_FLAG_THIN: u32 = 2u; // transmissive and thin-walled: a clear sheet (a cornea)
+const MAT_FLAG_CLEAR: u32 = 3u; // either: shadow rays and the passes look through it
 // Material models (crates/render/src/scene/mod.rs MaterialModel): 0 is the glTF
 // metallic-roughness mapping, everything above it the layered Standard Surface (layered.wgsl).
 const MODEL_GLTF: u32 = 0u;
@@ -107,7 +109,9 @@ const INV_PI: f32 = 0.318309886183791;
 @group(0) @binding(11) var<storage, read_write> accum_lit: array<vec4<f32>>;
 @group(0) @binding(12) var<storage, read_write> accum_aux: array<vec4<f32>>;
 @group(0) @binding(13) var<storage, read_write> counters: array<atomic<u32>>;
-@group(0) @binding(14) var<storage, read> probe_in: array<vec4<f32>>;
+// The probe kernels' input; the integrator's walk-dispatch schedule keeps its job slots here
+// (inc/walk_queue.wgsl), hence read_write.
+@group(0) @binding(14) var<storage, read_write> probe_in: array<vec4<f32>>;
 @group(0) @binding(15) var<storage, read_write> probe_out: array<vec4<f32>>;
 // Directional albedo of the layered model's lobes, LUT_N x LUT_N cells over (cos θ, roughness):
 // (GGX with F = 1 - Schlick term, GGX Schlick term, Charlie sheen, unused); see layered.wgsl.

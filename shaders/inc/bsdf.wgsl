@@ -2,7 +2,8 @@
 // Surface of the other models is layered.wgsl, which dispatches between both): Lambert diffuse + GGX specular
 // (roughness r -> α = r², visible-normal sampling with spherical caps, Dupuy & Benyoub 2023),
 // metals through F0 = base colour, KHR_materials_specular (specular 0 => pure diffuse), and a
-// smooth dielectric for transmissive materials (eyeglass lenses). All directions are in the local
+// smooth dielectric for transmissive materials (eyeglass lenses; thin-walled: a clear sheet such as
+// a cornea, thin_sheet_reflectance). All directions are in the local
 // shading frame (z = normal). `f` values include the cosine of the incoming direction.
 
 struct Surface {
@@ -27,6 +28,8 @@ struct Surface {
     sheen: f32,
     sheen_color: vec3<f32>,
     sheen_rough: f32,
+    // Transmissive and thin-walled (MAT_FLAG_THIN): a clear sheet, not a refracting boundary.
+    thin: bool,
 };
 
 struct BsdfEval {
@@ -117,6 +120,15 @@ fn fresnel_dielectric(cos_i_in: f32, eta_in: f32) -> f32 {
     return 0.5 * (r_parl * r_parl + r_perp * r_perp);
 }
 
+// A thin smooth sheet of index `eta` in air, both faces and the light bouncing between them
+// summed: R + T²R / (1 − R²) = 2R / (1 + R), with R the single-interface Fresnel. What is not
+// reflected passes straight through (nothing absorbs), so the shadow rays' transmittance
+// 1 − this is exact for a sheet, which is what MIS through it relies on.
+fn thin_sheet_reflectance(cos_i: f32, eta: f32) -> f32 {
+    let r = fresnel_dielectric(abs(cos_i), eta);
+    return 2.0 * r / (1.0 + r);
+}
+
 // --- the glTF metallic-roughness model (MODEL_GLTF) ---
 
 fn surface_f0(s: Surface) -> vec3<f32> {
@@ -191,6 +203,15 @@ fn gltf_lobes_parts(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> array<vec3<f32>
 
 fn gltf_sample(s: Surface, wo: vec3<f32>, u_lobe: f32, u: vec2<f32>) -> BsdfSample {
     var out = BsdfSample(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, false, false, false);
+    if (is_dielectric_delta(s) && s.thin) {
+        let f = thin_sheet_reflectance(wo.z, s.ior);
+        out.wi = select(-wo, vec3<f32>(-wo.x, -wo.y, wo.z), u_lobe < f);
+        out.weight = vec3<f32>(1.0);
+        out.pdf = select(1.0 - f, f, u_lobe < f);
+        out.is_delta = true;
+        out.valid = true;
+        return out;
+    }
     if (is_dielectric_delta(s)) {
         let f = fresnel_dielectric(wo.z, s.ior);
         if (u_lobe < f) {

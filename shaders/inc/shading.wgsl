@@ -6,7 +6,7 @@ struct ShadingPoint {
     ng: vec3<f32>,      // geometric normal, world space, unit, facing the incoming ray
     frame: Frame,       // shading frame (z = shading normal, same side as ng)
     material: u32,
-    flags: u32,         // material flags (MAT_FLAG_LENS)
+    flags: u32,         // material flags (MAT_FLAG_LENS, MAT_FLAG_THIN)
     opacity: f32,       // glTF alpha coverage
     surface: Surface,
     albedo: vec3<f32>,  // base colour at the hit (the albedo pass)
@@ -106,20 +106,23 @@ fn shade_hit(ray: Ray, hit: Hit) -> ShadingPoint {
     let alpha = max(roughness * roughness, 1e-3);
     // Frames face the incoming ray, so a dielectric learns from the side it was hit on whether the
     // ray leaves the (outward-facing) surface: then the relative index of refraction inverts.
+    // A thin sheet has air on both sides: its index never inverts.
+    let thin = (mat.tex.w & MAT_FLAG_THIN) != 0u;
     var ior = max(mat.spec_color_ior.w, 1.0001);
-    if (from_back && mat.mrst.w > 0.5) {
+    if (from_back && mat.mrst.w > 0.5 && !thin) {
         ior = 1.0 / ior;
     }
     var specular = mat.mrst.z;
     if (mat.tex2.x != NO_TEX) {
-        specular *= texture_sample(mat.tex2.x, uv).x;
+        // KHR_materials_specular: the specular texture's A channel.
+        specular *= texture_sample(mat.tex2.x, uv).w;
     }
     // The paper's skin scatters its diffuse texture: a negative subsurface colour means "the base".
     let sss_color = select(mat.sss.xyz, base, mat.sss.x < 0.0);
     let coat_alpha = max(mat.coat_sheen.x * mat.coat_sheen.x, 1e-3);
     let surface = Surface(base, clamp(metallic, 0.0, 1.0), alpha, specular, mat.spec_color_ior.xyz, mat.mrst.w, ior,
         mat.tex2.y, mat.sss.w, sss_color, mat.sss_mfp.xyz, mat.sss_mfp.w,
-        mat.coat.w, mat.coat.xyz, coat_alpha, mat.coat_sheen.y, mat.coat_sheen.z, mat.sheen_color.xyz, mat.coat_sheen.w);
+        mat.coat.w, mat.coat.xyz, coat_alpha, mat.coat_sheen.y, mat.coat_sheen.z, mat.sheen_color.xyz, mat.coat_sheen.w, thin);
     return ShadingPoint(p, ng, frame, mat_id, mat.tex.w, mat.extra.y, surface, base);
 }
 

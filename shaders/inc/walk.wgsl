@@ -35,7 +35,7 @@ fn walk_offset(p: vec3<f32>) -> f32 {
 // The surface a walk leaves through: white Lambert (the medium's colour is in the walk weight).
 fn exit_surface() -> Surface {
     return Surface(vec3<f32>(1.0), 0.0, 1.0, 0.0, vec3<f32>(0.0), 0.0, 1.5,
-        MODEL_GLTF, 0.0, vec3<f32>(0.0), vec3<f32>(1.0), 0.0, 0.0, vec3<f32>(0.0), 1.0, 1.5, 0.0, vec3<f32>(0.0), 1.0);
+        MODEL_GLTF, 0.0, vec3<f32>(0.0), vec3<f32>(1.0), 0.0, 0.0, vec3<f32>(0.0), 1.0, 1.5, 0.0, vec3<f32>(0.0), 1.0, false);
 }
 
 fn random_walk(sp: ShadingPoint, inst: u32, wo: vec3<f32>, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> WalkExit {

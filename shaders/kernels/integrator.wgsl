@@ -8,6 +8,7 @@
 //!include inc/subsurface.wgsl
 //!include inc/shading.wgsl
 //!include inc/walk.wgsl
+//!include inc/walk_queue.wgsl
 
 // The path tracer: one invocation per pixel, `pc.sample_count` camera samples per dispatch for the
 // lighting `pc.light`. Unidirectional path tracing with next-event estimation of the environment,
@@ -68,6 +69,29 @@ fn split_of(l: Lobes) -> Split {
     return Split(safe_ratio(l.diffuse, f), safe_ratio(l.specular, f), vec3<f32>(0.0), safe_ratio(l.coat, f), safe_ratio(l.sheen, f));
 }
 
+// Where trace_path starts: a camera ray, or (STAGE_WALKS) the exit point of a parked walk.
+struct PathStart {
+    ray: Ray,
+    throughput: vec3<f32>,
+    depth: u32,
+    exit: bool,            // exit_sp is the first vertex (no ray to find it)
+    exit_sp: ShadingPoint,
+    split: Split,
+    split_set: bool,
+};
+
+// Russian roulette after a bounce at `depth`: false ends the path.
+fn roulette(throughput: ptr<function, vec3<f32>>, depth: u32, rng: ptr<function, Rng>) -> bool {
+    if (depth + 1u >= params.rr_depth) {
+        let q = clamp(max3(*throughput), 0.05, 1.0);
+        if (rng_next(rng) >= q) {
+            return false;
+        }
+        *throughput /= q;
+    }
+    return true;
+}
+
 fn camera_ray(px: vec2<u32>, jitter: vec2<f32>) -> Ray {
     let ndc = (vec2<f32>(px) + jitter) / vec2<f32>(f32(params.width), f32(params.height));
     let sx = 2.0 * ndc.x - 1.0;
@@ -83,7 +107,8 @@ fn to_camera(v: vec3<f32>) -> vec3<f32> {
 
 // Visibility of the environment along `dir`: lens surfaces are thin clear glass and let the
 // light through attenuated by their Fresnel transmittance (refraction ignored, as for any
-// shadow ray through a thin window); anything else blocks it.
+// shadow ray through a thin window), thin-walled sheets (a cornea) by theirs, which is exact;
+// partly covering surfaces (opacity < 0.5) by their coverage; anything else blocks it.
 fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function, u32>) -> f32 {
     // Without lenses any hit blocks, so the first one found ends the traversal. (One trace call
     // site per kernel path keeps the code lavapipe generates small.)
@@ -97,12 +122,14 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
             return tr;
         }
         let mat = materials[triangle_material(h.tri)];
-        if (any_hit || ((mat.tex.w & MAT_FLAG_LENS) == 0u && mat.extra.y >= 0.5)) {
+        if (any_hit || ((mat.tex.w & MAT_FLAG_CLEAR) == 0u && mat.extra.y >= 0.5)) {
             return 0.0;
         }
         let sp = shade_hit(Ray(origin, dir, 0.0, 3.4e38), h);
         if ((mat.tex.w & MAT_FLAG_LENS) != 0u) {
             tr *= 1.0 - fresnel_dielectric(abs(dot(dir, sp.ng)), max(mat.spec_color_ior.w, 1.0001));
+        } else if ((mat.tex.w & MAT_FLAG_THIN) != 0u) {
+            tr *= 1.0 - thin_sheet_reflectance(dot(dir, sp.ng), sp.surface.ior);
         } else {
             tr *= 1.0 - mat.extra.y;
         }
@@ -111,16 +138,19 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
     return 0.0;
 }
 
-fn trace_path(first: Ray, p: u32, sample: u32, light: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>, ps: ptr<function, Passes>) -> vec3<f32> {
+// `defer_slot`: NO_SLOT walks where the path picks a subsurface lobe; anything else parks the
+// path there in that job slot (STAGE_PATHS) and ends it.
+fn trace_path(start: PathStart, p: u32, sample: u32, light: u32, defer_slot: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>, ps: ptr<function, Passes>) -> vec3<f32> {
     let want_passes = pc.passes != 0u;
-    var split = Split(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
-    var split_set = false;
-    var ray = first;
-    var throughput = vec3<f32>(1.0);
+    var split = start.split;
+    var split_set = start.split_set;
+    var ray = start.ray;
+    var throughput = start.throughput;
     var radiance = vec3<f32>(0.0);
     var prev_pdf = 0.0;
     var prev_delta = true;
-    var only_lens = true; // still on the camera ray (possibly through lenses): a miss is background
+    // Still on the camera ray (possibly through lenses): a miss is background.
+    var only_lens = start.depth == 0u;
     // Next-event estimation sees the environment through lens surfaces (shadow_transmittance),
     // so a BSDF-sampled path that only refracts through lenses after its last non-delta vertex
     // reaches light that NEE at that vertex also counted: it is weighted by MIS against NEE
@@ -130,17 +160,18 @@ fn trace_path(first: Ray, p: u32, sample: u32, light: u32, rng: ptr<function, Rn
     var through_lenses = false;
     var lens_layers = 0u;
     // A subsurface walk ends at an exit point, which is the next vertex without a ray to find it.
-    var exit_pending = false;
-    var exit_sp: ShadingPoint;
-    for (var depth = 0u; depth <= params.max_depth; depth++) {
+    var exit_pending = start.exit;
+    var exit_sp = start.exit_sp;
+    for (var depth = start.depth; depth <= params.max_depth; depth++) {
         var sp: ShadingPoint;
         var hit_instance = 0u;
+        var hit: Hit;
         if (exit_pending) {
             exit_pending = false;
             sp = exit_sp;
         } else {
             *rays += 1u;
-            let hit = trace_closest(ray);
+            hit = trace_closest(ray);
             if (depth == 0u && pc.write_aux != 0u) {
                 // The camera ray's hit serves the passes too.
                 aux_passes(ray, hit, p, sample, rays);
@@ -221,6 +252,10 @@ fn trace_path(first: Ray, p: u32, sample: u32, light: u32, rng: ptr<function, Rn
             break;
         }
         if (bs.subsurface) {
+            if (defer_slot != NO_SLOT) {
+                job_park(defer_slot, ray, hit, throughput, bs.weight, depth, split, split_set, *rng);
+                break;
+            }
             let walk = random_walk(sp, hit_instance, wo, rng, rays);
             if (!walk.ok) {
                 break;
@@ -253,20 +288,17 @@ fn trace_path(first: Ray, p: u32, sample: u32, light: u32, rng: ptr<function, Rn
                 through_lenses = true;
                 lens_layers = 0u;
             } else {
-                // Frames face the incoming ray (wo.z > 0): a refraction leaves through the back.
+                // Frames face the incoming ray (wo.z > 0): a refraction leaves through the back
+                // (and so does the straight pass through a thin sheet, which NEE sees exactly).
                 lens_layers += 1u;
-                let refracted = bs.wi.z < 0.0 && (sp.flags & MAT_FLAG_LENS) != 0u;
+                let refracted = bs.wi.z < 0.0 && (sp.flags & MAT_FLAG_CLEAR) != 0u;
                 through_lenses = through_lenses && refracted && lens_layers < SHADOW_LENS_LAYERS;
             }
             ray = Ray(offset_origin(sp.p, sp.ng, wi_world), wi_world, 0.0, 3.4e38);
         }
 
-        if (depth + 1u >= params.rr_depth) {
-            let q = clamp(max3(throughput), 0.05, 1.0);
-            if (rng_next(rng) >= q) {
-                break;
-            }
-            throughput /= q;
+        if (!roulette(&throughput, depth, rng)) {
+            break;
         }
     }
     return radiance;
@@ -288,8 +320,9 @@ fn aux_passes(first: Ray, first_hit: Hit, p: u32, sample: u32, rays: ptr<functio
             return;
         }
         let sp = shade_hit(ray, hit);
-        if (sp.opacity < 0.5) {
-            // Mostly transparent (a cornea, a glTF BLEND veil): the passes look through it.
+        if (sp.opacity < 0.5 || (sp.flags & MAT_FLAG_THIN) != 0u) {
+            // Mostly transparent (a glTF BLEND veil) or a clear sheet (a cornea): the passes
+            // look through it.
             ray.tmin = hit.t * (1.0 + 1e-5) + 1e-6;
             continue;
         }
@@ -319,25 +352,77 @@ fn aux_passes(first: Ray, first_hit: Hit, p: u32, sample: u32, rays: ptr<functio
     }
 }
 
-@compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    stack_base = lid;
-    if (gid.x >= params.width || gid.y >= params.height) {
-        return;
+fn accumulate(p: u32, sum: vec3<f32>, passes: Passes) {
+    accum_lit[pc.light * params.width * params.height + p] += vec4<f32>(sum, 0.0);
+    if (pc.passes != 0u) {
+        let b = PASS_VEC4S * p;
+        probe_out[b] += vec4<f32>(passes.diffuse, 0.0);
+        probe_out[b + 1u] += vec4<f32>(passes.specular, 0.0);
+        probe_out[b + 2u] += vec4<f32>(passes.sss, 0.0);
+        probe_out[b + 3u] += vec4<f32>(passes.coat, 0.0);
+        probe_out[b + 4u] += vec4<f32>(passes.sheen, 0.0);
+        probe_out[b + 5u] += vec4<f32>(passes.direct, passes.unshadowed, 0.0, 0.0);
     }
-    let p = gid.y * params.width + gid.x;
+}
+
+// pc.mode is the stage (inc/walk_queue.wgsl): the megakernel, or one of the walk-dispatch
+// schedule's three. One call of trace_path serves all of them (lavapipe inlines every call).
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32,
+        @builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    stack_base = lid;
+    let walks = pc.mode == STAGE_WALKS;
+    var p = 0u;
+    var iterations = pc.sample_count;
+    var job = NO_SLOT;
+    if (walks) {
+        let k = lid + 64u * (wid.x + wid.y * nwg.x);
+        if (k >= atomicLoad(&counters[1])) {
+            return;
+        }
+        job = bitcast<u32>(probe_in[queue_entry(k)].x);
+        iterations = 1u;
+    } else {
+        if (gid.x >= params.width || gid.y >= params.height) {
+            return;
+        }
+        p = gid.y * params.width + gid.x;
+        if (pc.mode == STAGE_GATHER) {
+            job_gather(p);
+            return;
+        }
+    }
     let pixels = params.width * params.height;
     var rays = 0u;
     var sum = vec3<f32>(0.0);
     var passes = passes_zero();
-    for (var i = 0u; i < pc.sample_count; i++) {
+    for (var i = 0u; i < iterations; i++) {
         let s = pc.sample_start + i;
-        var rng = rng_init(p, s, params.seed);
-        let ray = camera_ray(gid.xy, rng_next2(&rng));
+        var rng: Rng;
+        var start: PathStart;
+        var go = true;
+        var defer_slot = NO_SLOT;
+        if (walks) {
+            go = job_resume(job, &rng, &rays, &start);
+        } else {
+            rng = rng_init(p, s, params.seed);
+            start.ray = camera_ray(gid.xy, rng_next2(&rng));
+            start.throughput = vec3<f32>(1.0);
+            if (pc.mode == STAGE_PATHS) {
+                defer_slot = i * pixels + p;
+                job_clear(defer_slot);
+            }
+        }
         var ps = passes_zero();
-        let l = trace_path(ray, p, s, pc.light, &rng, &rays, &ps);
-        // A non-finite sample would poison the pixel's sum for good: drop it.
-        if (all(l == l) && max3(l) < 3.0e38) {
+        var l = vec3<f32>(0.0);
+        if (go) {
+            l = trace_path(start, p, s, pc.light, defer_slot, &rng, &rays, &ps);
+        }
+        if (walks) {
+            // The gather stage filters and adds it, one writer per pixel.
+            job_finish(job, l, ps);
+        } else if (all(l == l) && max3(l) < 3.0e38) {
+            // A non-finite sample would poison the pixel's sum for good: drop it.
             sum += l;
             if (pc.passes != 0u) {
                 passes.diffuse += ps.diffuse;
@@ -350,15 +435,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             }
         }
     }
-    accum_lit[pc.light * pixels + p] += vec4<f32>(sum, 0.0);
-    if (pc.passes != 0u) {
-        let b = PASS_VEC4S * p;
-        probe_out[b] += vec4<f32>(passes.diffuse, 0.0);
-        probe_out[b + 1u] += vec4<f32>(passes.specular, 0.0);
-        probe_out[b + 2u] += vec4<f32>(passes.sss, 0.0);
-        probe_out[b + 3u] += vec4<f32>(passes.coat, 0.0);
-        probe_out[b + 4u] += vec4<f32>(passes.sheen, 0.0);
-        probe_out[b + 5u] += vec4<f32>(passes.direct, passes.unshadowed, 0.0, 0.0);
+    if (!walks) {
+        accumulate(p, sum, passes);
     }
     atomicAdd(&counters[0], rays);
 }

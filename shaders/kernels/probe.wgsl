@@ -42,9 +42,9 @@ fn probe_surface() -> Surface {
     let e = probe_in[4]; // mean free path, anisotropy
     let f = probe_in[5]; // coat colour, coat weight
     let g = probe_in[6]; // coat alpha, coat ior, sheen weight, sheen roughness
-    let h = probe_in[7]; // sheen colour
+    let h = probe_in[7]; // sheen colour, thin-walled (> 0.5)
     return Surface(a.xyz, a.w, b.x, b.y, c.xyz, b.z, b.w, u32(c.w), d.w, d.xyz, e.xyz, e.w,
-        f.w, f.xyz, g.x, g.y, g.z, h.xyz, g.w);
+        f.w, f.xyz, g.x, g.y, g.z, h.xyz, g.w, h.w > 0.5);
 }
 
 @compute @workgroup_size(64, 1, 1)

@@ -11,7 +11,7 @@ use lightfarm_render::output::{write_exr, write_preview_png};
 use lightfarm_render::passes::Pass;
 use lightfarm_render::scene::{materials_json, Camera, Scene};
 use lightfarm_render::vulkan::{list_devices, DeviceRequest};
-use lightfarm_render::{EnvLight, RenderSettings, Renderer, RENDERER_VERSION};
+use lightfarm_render::{EnvLight, RenderSettings, Renderer, WalkSchedule, RENDERER_VERSION};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -59,6 +59,11 @@ pub struct RenderArgs {
     /// Vulkan device: auto, gpu, cpu, an index from `lightfarm devices`, or part of its name.
     #[arg(long, env = "LIGHTFARM_DEVICE", default_value = "auto")]
     device: String,
+    /// Where subsurface random walks run: "megakernel" (in the path's invocation) or
+    /// "dispatch" (queued and run side by side by a dispatch of their own; at most 524288
+    /// pixels). Same image either way; BENCHMARKS.md times both.
+    #[arg(long, default_value = "megakernel")]
+    walk: String,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32)> {
@@ -146,6 +151,12 @@ pub fn run(args: RenderArgs) -> Result<()> {
         ensure_parent(p, "--preview")?;
     }
     let device: DeviceRequest = args.device.parse().context("--device")?;
+    let walk = WalkSchedule::parse(&args.walk).with_context(|| {
+        format!(
+            "--walk '{}' is not a schedule: use megakernel or dispatch",
+            args.walk
+        )
+    })?;
     let scene = Scene::load_gltf(&args.scene)
         .with_context(|| format!("--scene {}", args.scene.display()))?;
     let lights = load_lights(&args)?;
@@ -164,7 +175,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     settings.validate()?;
 
     let packed = pack_scene(&scene).with_context(|| format!("--scene {}", args.scene.display()))?;
-    let renderer = Renderer::new(&device)?;
+    let mut renderer = Renderer::new(&device)?;
+    renderer.set_walk_schedule(walk);
     tracing::info!(device = %renderer.device().name, triangles = packed.triangle_count, "rendering");
 
     let bar = ProgressBar::new(args.spp as u64 * lights.len() as u64);

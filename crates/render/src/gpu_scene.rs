@@ -13,7 +13,8 @@ use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 
 use crate::gpu_types::{
-    InstanceGpu, MaterialGpu, MAT_FLAG_LENS, NO_NODE, NO_TEX, SCENE_HAS_LENS, TRI_ATTR_VEC4S,
+    InstanceGpu, MaterialGpu, MAT_FLAG_LENS, MAT_FLAG_THIN, NO_NODE, NO_TEX, SCENE_HAS_LENS,
+    TRI_ATTR_VEC4S,
 };
 use crate::scene::{Material, Scene};
 use crate::RenderError;
@@ -58,7 +59,12 @@ fn build_params() -> BvhBuildParams {
 
 fn material_gpu(m: &Material, texture_count: u32) -> MaterialGpu {
     let tex = |t: Option<u32>| t.filter(|&i| i < texture_count).unwrap_or(NO_TEX);
-    let lens = m.transmission > 0.5;
+    let clear = m.transmission > 0.5;
+    let flags = match (clear, m.thin_walled) {
+        (false, _) => 0,
+        (true, false) => MAT_FLAG_LENS,
+        (true, true) => MAT_FLAG_THIN,
+    };
     MaterialGpu {
         base_color: m.base_color,
         mrst: [
@@ -77,7 +83,7 @@ fn material_gpu(m: &Material, texture_count: u32) -> MaterialGpu {
             tex(m.base_color_texture),
             tex(m.metallic_roughness_texture),
             tex(m.normal_texture),
-            if lens { MAT_FLAG_LENS } else { 0 },
+            flags,
         ],
         extra: [m.normal_scale, m.opacity.clamp(0.0, 1.0), 0.0, 0.0],
         sss: match m.subsurface_color {
@@ -309,9 +315,14 @@ pub fn pack_scene(scene: &Scene) -> Result<PackedScene, RenderError> {
 }
 
 impl PackedScene {
-    /// SCENE_HAS_LENS when some material is a lens (shadow rays must then look through it).
+    /// SCENE_HAS_LENS when some material is a lens or a thin clear sheet (shadow rays must
+    /// then look through it).
     pub fn scene_flags(&self) -> u32 {
-        if self.materials.iter().any(|m| m.tex[3] & MAT_FLAG_LENS != 0) {
+        if self
+            .materials
+            .iter()
+            .any(|m| m.tex[3] & (MAT_FLAG_LENS | MAT_FLAG_THIN) != 0)
+        {
             SCENE_HAS_LENS
         } else {
             0

@@ -5,7 +5,11 @@ use bytemuck::{Pod, Zeroable};
 
 pub const NO_NODE: u32 = u32::MAX;
 pub const NO_TEX: u32 = u32::MAX;
+/// A transmissive material that bounds a refracting solid (an eyeglass lens).
 pub const MAT_FLAG_LENS: u32 = 1;
+/// A transmissive thin-walled material: a clear sheet that light passes straight through.
+pub const MAT_FLAG_THIN: u32 = 2;
+/// Some material is see-through (MAT_FLAG_LENS or MAT_FLAG_THIN): shadow rays look through it.
 pub const SCENE_HAS_LENS: u32 = 1;
 /// vec4s of per-triangle attributes in `tri_attr` (see shaders/inc/traverse.wgsl).
 pub const TRI_ATTR_VEC4S: usize = 5;

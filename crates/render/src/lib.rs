@@ -19,7 +19,7 @@ pub mod tables;
 pub mod vulkan;
 
 pub use gpu_env::EnvLight;
-pub use renderer::{RenderOutput, RenderSettings, RenderStats, Renderer};
+pub use renderer::{RenderOutput, RenderSettings, RenderStats, Renderer, WalkSchedule};
 
 /// Version recorded in every output (the sample's `renderer` attribute).
 pub const RENDERER_VERSION: &str = concat!("lightfarm-render ", env!("CARGO_PKG_VERSION"));

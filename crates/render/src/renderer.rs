@@ -173,10 +173,41 @@ pub(crate) fn camera_params(settings: &RenderSettings) -> ([f32; 4], [f32; 4], [
     )
 }
 
+/// Where a subsurface random walk runs (shaders/inc/walk_queue.wgsl). Both give the same paths
+/// from the same random streams; only the order of the work differs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum WalkSchedule {
+    /// In the path's own invocation, where it picks the subsurface lobe.
+    #[default]
+    Megakernel,
+    /// Parked and queued by the path dispatch, run side by side by a dispatch of their own,
+    /// then gathered per pixel (three dispatches per round of samples).
+    Dispatch,
+}
+
+impl WalkSchedule {
+    pub fn parse(name: &str) -> Option<WalkSchedule> {
+        match name {
+            "megakernel" => Some(WalkSchedule::Megakernel),
+            "dispatch" => Some(WalkSchedule::Dispatch),
+            _ => None,
+        }
+    }
+}
+
+/// Paths per round of the walk-dispatch schedule: its job slots (JOB_VEC4S vec4s plus one
+/// queue entry each, 192 bytes) must fit lavapipe's 128 MiB storage-buffer range.
+const DISPATCH_PATHS: u64 = 1 << 19;
+const JOB_BYTES: u64 = (11 + 1) * 16;
+const STAGE_PATHS: u32 = 1;
+const STAGE_WALKS: u32 = 2;
+const STAGE_GATHER: u32 = 3;
+
 pub struct Renderer {
     ctx: Arc<GpuContext>,
     integrator: ComputeKernel,
     tables: GpuBuffer,
+    walk: WalkSchedule,
 }
 
 impl Renderer {
@@ -194,6 +225,7 @@ impl Renderer {
             ctx,
             integrator,
             tables,
+            walk: WalkSchedule::default(),
         };
         renderer.warm_up()?;
         Ok(renderer)
@@ -215,6 +247,16 @@ impl Renderer {
         self.integrator
             .dispatch(&bindings, bytemuck::bytes_of(&Push::default()), [1, 1, 1])?;
         Ok(())
+    }
+
+    /// Chooses where subsurface walks run for the renders that follow (the megakernel unless
+    /// set; BENCHMARKS.md compares the two).
+    pub fn set_walk_schedule(&mut self, walk: WalkSchedule) {
+        self.walk = walk;
+    }
+
+    pub fn walk_schedule(&self) -> WalkSchedule {
+        self.walk
     }
 
     pub fn context(&self) -> &Arc<GpuContext> {
@@ -269,7 +311,28 @@ impl Renderer {
         )?;
         let aux = GpuBuffer::zeroed(&self.ctx, "pass accumulator", pixels * 4 * 16)?;
         let counters = GpuBuffer::zeroed(&self.ctx, "ray counter", 16)?;
-        let dummy_in = GpuBuffer::zeroed(&self.ctx, "unused", 16)?;
+        let dispatch = self.walk == WalkSchedule::Dispatch;
+        if dispatch && pixels > DISPATCH_PATHS {
+            return Err(RenderError::InvalidSettings(format!(
+                "{w}x{h} is more than the {DISPATCH_PATHS} pixels the walk-dispatch schedule \
+                 holds: render it with the megakernel (the default)"
+            )));
+        }
+        // About a million paths per dispatch: long enough to keep a GPU busy, short enough for
+        // a responsive progress bar on lavapipe and for the ray counter (u32) not to wrap. The
+        // walk-dispatch schedule holds half that many in its job slots.
+        let paths = if dispatch { DISPATCH_PATHS } else { 1 << 20 };
+        let per_dispatch = (paths / pixels).clamp(1, settings.spp as u64) as u32;
+        // The integrator's probe input is the walk-dispatch schedule's job slots.
+        let jobs = GpuBuffer::zeroed(
+            &self.ctx,
+            "walk jobs",
+            if dispatch {
+                per_dispatch as u64 * pixels * JOB_BYTES
+            } else {
+                16
+            },
+        )?;
         // The passes' accumulator holds one lighting at a time (read back after it), so its
         // size does not grow with the number of lightings.
         let split = Pass::needs_split(&settings.passes);
@@ -282,12 +345,8 @@ impl Renderer {
                 16
             },
         )?;
-        let bindings = bound.bindings([&lit, &aux, &counters, &dummy_in, &pass_acc], &self.tables);
+        let bindings = bound.bindings([&lit, &aux, &counters, &jobs, &pass_acc], &self.tables);
         let mut lit_passes = Vec::new();
-
-        // About a million paths per dispatch: long enough to keep a GPU busy, short enough for
-        // a responsive progress bar on lavapipe and for the ray counter (u32) not to wrap.
-        let per_dispatch = ((1u64 << 20) / pixels).clamp(1, settings.spp as u64) as u32;
         let groups = [w.div_ceil(8), h.div_ceil(8), 1];
         let total = settings.spp as u64 * lights.len() as u64;
         let mut done = 0u64;
@@ -304,8 +363,31 @@ impl Renderer {
                     passes: split as u32,
                     ..Default::default()
                 };
-                self.integrator
-                    .dispatch(&bindings, bytemuck::bytes_of(&push), groups)?;
+                if dispatch {
+                    let stage = |mode: u32| Push { mode, ..push };
+                    let slots = count as u64 * pixels;
+                    self.integrator.dispatch(
+                        &bindings,
+                        bytemuck::bytes_of(&stage(STAGE_PATHS)),
+                        groups,
+                    )?;
+                    self.integrator.dispatch(
+                        &bindings,
+                        bytemuck::bytes_of(&Push {
+                            write_aux: 0,
+                            ..stage(STAGE_WALKS)
+                        }),
+                        [slots.div_ceil(64) as u32, 1, 1],
+                    )?;
+                    self.integrator.dispatch(
+                        &bindings,
+                        bytemuck::bytes_of(&stage(STAGE_GATHER)),
+                        groups,
+                    )?;
+                } else {
+                    self.integrator
+                        .dispatch(&bindings, bytemuck::bytes_of(&push), groups)?;
+                }
                 let c: Vec<u32> = counters.read()?;
                 rays += c[0] as u64;
                 counters.write(&[0u32; 4])?;

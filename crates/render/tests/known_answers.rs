@@ -329,43 +329,6 @@ fn partial_coverage_is_seen_through() {
     );
 }
 
-/// Camera ray (world direction) through sub-pixel point (sx, sy) ∈ [-1, 1]² of `front_camera`.
-fn front_ray(sx: f32, sy: f32) -> Vec3 {
-    let tan_half = (15.0f32).to_radians().tan();
-    Vec3::new(sx * tan_half, sy * tan_half, -1.0).normalize()
-}
-
-/// For each pixel, the mean of `f(cos θ)` over 8×8 sub-pixel rays that hit the analytic sphere
-/// of `radius` at the origin (θ between the ray and the sphere's normal), or None where a
-/// sub-pixel ray misses it.
-fn over_sphere_pixels(size: u32, radius: f32, f: impl Fn(f64) -> f64) -> Vec<Option<f64>> {
-    let eye = Vec3::new(0.0, 0.0, 3.0);
-    let mut out = Vec::new();
-    for py in 0..size {
-        for px in 0..size {
-            let mut sum = Some(0.0);
-            for a in 0..8 {
-                for b in 0..8 {
-                    let sx = ((px as f32 + (a as f32 + 0.5) / 8.0) / size as f32) * 2.0 - 1.0;
-                    let sy = 1.0 - ((py as f32 + (b as f32 + 0.5) / 8.0) / size as f32) * 2.0;
-                    let d = front_ray(sx, sy);
-                    let bq = eye.dot(d);
-                    let disc = bq * bq - (eye.length_squared() - radius * radius);
-                    if disc < 0.0 {
-                        sum = None;
-                        continue;
-                    }
-                    let hit = eye + d * (-bq - disc.sqrt());
-                    let n = hit / radius;
-                    sum = sum.map(|s| s + f(f64::from(n.dot(-d))) / 64.0);
-                }
-            }
-            out.push(sum);
-        }
-    }
-    out
-}
-
 /// Furnace: a GGX metal sphere with F0 = 1 in a constant environment of 1 reflects, at each
 /// point, the directional albedo of single-scattering GGX at its viewing angle: ≤ 1, and equal
 /// to the albedo tabulated by CPU quadrature (tests/common/bsdf_ref.rs).
@@ -397,7 +360,7 @@ fn furnace_rough_metal_sphere_matches_the_ggx_albedo() {
     );
     let size = 48;
     let out = common::render(&scene, &[common::constant_light(1.0)], size, 64, 5);
-    let expected = over_sphere_pixels(size, 0.5, albedo);
+    let expected = common::over_sphere_pixels(size, 0.5, albedo);
     let (mut got, mut want, mut n) = (0.0f64, 0.0f64, 0usize);
     for ((p, m), e) in out.lit[0].iter().zip(&out.mask).zip(&expected) {
         for c in p {
@@ -526,7 +489,7 @@ fn furnace_white_sphere_seen_through_clear_glass() {
     // meeting a sphere of radius ρ at cosine c passes the centre at b = ρ·√(1 − c²). Pixels
     // with a ray passing near the white sphere's silhouette (b > 0.28) are left out.
     const KEEP: f64 = 0.28;
-    let transmission = over_sphere_pixels(size, KEEP as f32, |c| {
+    let transmission = common::over_sphere_pixels(size, KEEP as f32, |c| {
         let impact = KEEP * (1.0 - c * c).max(0.0).sqrt();
         let wall = |radius: f64| {
             let s = impact / radius;

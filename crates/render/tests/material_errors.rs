@@ -12,7 +12,7 @@ use common::gltf_files::{gltf_material, scratch_dir, write_gltf};
 fn bad_extras_fail_naming_file_material_and_key() {
     let dir = scratch_dir("errors");
     let accepted_models =
-        "\"skin\", \"eye\", \"mouth\", \"teeth\", \"cloth\", \"plastic\", \"metal\", \"lens\"";
+        "\"skin\", \"eye\", \"mouth\", \"teeth\", \"cloth\", \"plastic\", \"metal\", \"lens\", \"cornea\"";
     // (case, extras.lightfarm, key the error names, text it must contain)
     let cases: Vec<(&str, Value, &str, &str)> = vec![
         (
@@ -68,6 +68,12 @@ fn bad_extras_fail_naming_file_material_and_key() {
             json!({"model": "eye", "sheen": true}),
             "extras.lightfarm.sheen",
             "not a boolean",
+        ),
+        (
+            "thin_walled_type",
+            json!({"model": "lens", "thin_walled": 1}),
+            "extras.lightfarm.thin_walled",
+            "must be true or false, not a number",
         ),
         (
             "colour_length",

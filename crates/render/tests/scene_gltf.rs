@@ -82,10 +82,38 @@ fn loads_lee_perry_smith_head() {
         !scene.textures.is_empty(),
         "textured head decoded no textures"
     );
-    assert!(scene
-        .materials
-        .iter()
-        .any(|m| m.base_color_texture.is_some()));
+    // The scan's three maps: colour, the tangent-space normal map and the specular map
+    // (KHR_materials_specular, A channel; scripts/derive_lee_perry_smith.py).
+    let skin = &scene.materials[0];
+    assert_eq!(skin.name, "LeePerrySmith_skin");
+    let (Some(colour), Some(normal), Some(spec)) = (
+        skin.base_color_texture,
+        skin.normal_texture,
+        skin.specular_texture,
+    ) else {
+        panic!("the skin has all three maps: {skin:?}");
+    };
+    assert_eq!(scene.textures.len(), 3);
+    assert!(colour != normal && normal != spec && colour != spec);
+    let spec = &scene.textures[spec as usize];
+    assert_eq!((spec.width, spec.height), (1024, 1024));
+    let alpha: Vec<u8> = spec.rgba8.chunks_exact(4).map(|p| p[3]).collect();
+    let mean = alpha.iter().map(|&a| f64::from(a)).sum::<f64>() / alpha.len() as f64 / 255.0;
+    assert!(
+        (0.2..0.3).contains(&mean) && alpha.iter().any(|&a| a > 200) && alpha.contains(&0),
+        "the specular map varies over the face (mean {mean:.3})"
+    );
+    let normal = &scene.textures[normal as usize];
+    let blue = normal
+        .rgba8
+        .chunks_exact(4)
+        .map(|p| f64::from(p[2]))
+        .sum::<f64>()
+        / (normal.rgba8.len() / 4) as f64;
+    assert!(
+        blue > 200.0,
+        "a tangent-space normal map is mostly +Z: mean blue {blue}"
+    );
     let (lo, hi) = scene.world_bounds().expect("bounds");
     assert!((hi - lo).max_element() > 0.0);
     println!(

@@ -95,7 +95,8 @@ fn overrides_win_over_the_preset() {
                 "metalness": 0.1,
                 "specular": 0.75,
                 "transmission": 0.2,
-                "opacity": 0.5
+                "opacity": 0.5,
+                "thin_walled": true
             }, "other_tool": {"ignored": true}})),
         )],
     );
@@ -126,6 +127,7 @@ fn overrides_win_over_the_preset() {
     assert!(close(m.specular, 0.75));
     assert!(close(m.transmission, 0.2));
     assert!(close(m.opacity, 0.5));
+    assert!(m.thin_walled);
 
     // `subsurface_color: null` is the base colour again; untouched keys keep the preset.
     let path = write_gltf(
@@ -250,6 +252,13 @@ fn every_preset_sets_its_model_and_class() {
                 assert_eq!(m.class, ObjectClass::Lens);
                 assert!(close(m.transmission, 1.0) && m.metallic == 0.0);
                 assert!(close(m.ior, 1.5), "no KHR_materials_ior: 1.5");
+                assert!(!m.thin_walled, "a lens is a solid's surface");
+            }
+            MaterialModel::Cornea => {
+                assert_eq!(m.class, ObjectClass::Eyes);
+                assert!(close(m.transmission, 1.0) && m.metallic == 0.0 && m.thin_walled);
+                assert!(close(m.ior, 1.376) && close(m.specular, 1.0));
+                assert!(close(m.opacity, 1.0), "clear, not the file's 0.9 coverage");
             }
             MaterialModel::Gltf => unreachable!("gltf is not an extras model"),
         }
@@ -266,7 +275,7 @@ fn every_preset_sets_its_model_and_class() {
 }
 
 /// Every key of a material record, which must hold every parameter that affects rendering.
-const RECORD_KEYS: [&str; 29] = [
+const RECORD_KEYS: [&str; 30] = [
     "name",
     "model",
     "class",
@@ -296,6 +305,7 @@ const RECORD_KEYS: [&str; 29] = [
     "sheen",
     "sheen_color",
     "sheen_roughness",
+    "thin_walled",
 ];
 
 #[test]
@@ -331,6 +341,7 @@ fn materials_json_records_every_parameter_in_material_order() {
         sheen_color: [0.5, 0.625, 0.75],
         sheen_roughness: 0.5625,
         specular_texture: Some(6),
+        thin_walled: true,
     };
     let scene = Scene {
         materials: vec![Material::default(), special],
@@ -362,7 +373,7 @@ fn materials_json_records_every_parameter_in_material_order() {
         "transmission": 0.125, "opacity": 0.625, "double_sided": true,
         "subsurface": 0.3125, "subsurface_color": [0.75, 0.5, 0.25],
         "subsurface_radius": [2.0, 1.5, 0.5], "subsurface_scale": 0.0078125,
-        "subsurface_anisotropy": -0.25,
+        "subsurface_anisotropy": -0.25, "thin_walled": true,
         "coat": 0.4375, "coat_color": [0.875, 0.75, 0.625], "coat_roughness": 0.1875,
         "coat_IOR": 1.375,
         "sheen": 0.15625, "sheen_color": [0.5, 0.625, 0.75], "sheen_roughness": 0.5625,

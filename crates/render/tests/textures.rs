@@ -124,3 +124,36 @@ fn normal_map_tilts_the_shading_normal_along_the_tangent() {
         "mapped normal {n:?}"
     );
 }
+
+/// KHR_materials_specular's specular texture scales the specular weight by its A channel: on a
+/// black quad (no diffuse) the half whose texels have A = 0 reflects nothing, the half with
+/// A = 255 reflects its dielectric specular; the RGB channels (255 everywhere) do not count.
+#[test]
+fn specular_texture_scales_the_specular_by_its_alpha() {
+    let mut rgba8 = Vec::new();
+    for _y in 0..4 {
+        for x in 0..4 {
+            rgba8.extend_from_slice(&[255, 255, 255, if x < 2 { 0 } else { 255 }]);
+        }
+    }
+    let mut scene = Scene::default();
+    scene.textures.push(Texture {
+        width: 4,
+        height: 4,
+        rgba8,
+    });
+    let mut material = common::material(0.0, 1.0);
+    material.specular_texture = Some(0);
+    scene.add_mesh_instance(shapes::quad(1.0, 1.0), material, Mat4::IDENTITY);
+    let size = 32u32;
+    let out = common::render(&scene, &[common::constant_light(1.0)], size, 16, 1);
+    let px = |ndc: f32| ((ndc + 1.0) * 0.5 * size as f32) as u32;
+    let lum = |x: f32| {
+        let p = out.lit[0][(px(0.0) * size + px(x)) as usize];
+        (p[0] + p[1] + p[2]) / 3.0
+    };
+    let (off, on) = (lum(-0.31), lum(0.31));
+    println!("specular texture: A = 0 reflects {off}, A = 255 reflects {on}");
+    assert!(off.abs() < 1e-6, "A = 0: no specular, got {off}");
+    assert!(on > 0.02, "A = 255: the full specular layer, got {on}");
+}

@@ -21,13 +21,14 @@ const EYE_NAMES: [&[&str]; 2] = [&["sclera", "eyes", "eyeball"], &["cornea", "ir
 /// The model and class of a built-in head's material, by lower-cased material name
 /// (MakeHuman: skin, eyes, cornea, teeth, tongue; ICT FaceKit: skin, gums_tongue, teeth,
 /// sclera, iris, eyelashes; the Lee Perry-Smith scan: LeePerrySmith_skin). A `None` model keeps
-/// the glTF one and only sets the class; corneas and unknown names are not mapped at all.
+/// the glTF one and only sets the class; unknown names are not mapped at all.
 fn head_material(name: &str) -> Option<(Option<MaterialModel>, ObjectClass)> {
     use MaterialModel as M;
     use ObjectClass as C;
     Some(match name {
         "skin" | "leeperrysmith_skin" => (Some(M::Skin), C::Skin),
         "eyes" | "sclera" | "iris" => (Some(M::Eye), C::Eyes),
+        "cornea" => (Some(M::Cornea), C::Eyes),
         "teeth" => (Some(M::Teeth), C::Mouth),
         "tongue" | "gums_tongue" => (Some(M::Mouth), C::Mouth),
         "eyelashes" => (None, C::Hair),
@@ -80,7 +81,9 @@ fn material_matches(scene: &Scene, material: u32, names: &[&str]) -> bool {
 impl Head {
     /// Loads `asset` (a head file at `path`), gives its materials their models
     /// ([`assign_head_materials`]), applies the expression's morph weights (unknown morph names
-    /// are an error naming them), and moves it into the canonical frame.
+    /// are an error naming them), and moves it into the canonical frame. Eyeballs that cover
+    /// their iris get a clear cornea ([`crate::cornea::clear_corneas`]) after the landmarks are
+    /// found, so the eyeball centres are those of the whole balls.
     pub fn load(
         asset: &Asset,
         path: &Path,
@@ -130,6 +133,7 @@ impl Head {
             Some(table) => landmarks_from_table(asset, table)?,
             None => detect_landmarks(&scene, &surface).map_err(|r| asset_error(asset, r))?,
         };
+        crate::cornea::clear_corneas(&mut scene);
         Ok(Head {
             id: asset.id.clone(),
             scene,

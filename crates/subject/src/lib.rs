@@ -11,6 +11,7 @@
 //! below can use fixed anatomical distances.
 
 pub mod assemble;
+pub mod cornea;
 pub mod garment;
 pub mod glasses;
 pub mod hair;

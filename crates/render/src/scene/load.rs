@@ -217,6 +217,7 @@ fn convert_material(m: gltf::Material, path: &Path) -> Result<Material, SceneErr
         .specular()
         .map(|s| (s.specular_factor(), s.specular_color_factor()))
         .unwrap_or((defaults.specular, defaults.specular_color));
+    let specular_texture = tex(m.specular().and_then(|s| s.specular_texture()));
     let normal = m.normal_texture();
     let mut material = Material {
         name: m
@@ -232,6 +233,7 @@ fn convert_material(m: gltf::Material, path: &Path) -> Result<Material, SceneErr
         normal_scale: normal.as_ref().map_or(1.0, |n| n.scale()),
         specular,
         specular_color,
+        specular_texture,
         transmission: m
             .transmission()
             .map_or(defaults.transmission, |t| t.transmission_factor()),

@@ -20,7 +20,7 @@ use super::{Material, MaterialModel, ObjectClass, SceneError};
 
 /// The models `extras.lightfarm.model` may name (every model but `gltf`, which is what a
 /// material without `extras.lightfarm` gets).
-pub const EXTRAS_MODELS: [MaterialModel; 8] = [
+pub const EXTRAS_MODELS: [MaterialModel; 9] = [
     MaterialModel::Skin,
     MaterialModel::Eye,
     MaterialModel::Mouth,
@@ -29,10 +29,11 @@ pub const EXTRAS_MODELS: [MaterialModel; 8] = [
     MaterialModel::Plastic,
     MaterialModel::Metal,
     MaterialModel::Lens,
+    MaterialModel::Cornea,
 ];
 
 /// The Standard Surface parameters `extras.lightfarm` may override, besides `model`.
-pub const OVERRIDE_KEYS: [&str; 20] = [
+pub const OVERRIDE_KEYS: [&str; 21] = [
     "base_color",
     "metalness",
     "specular",
@@ -53,10 +54,11 @@ pub const OVERRIDE_KEYS: [&str; 20] = [
     "sheen_roughness",
     "transmission",
     "opacity",
+    "thin_walled",
 ];
 
 impl MaterialModel {
-    pub const ALL: [MaterialModel; 9] = [
+    pub const ALL: [MaterialModel; 10] = [
         MaterialModel::Gltf,
         MaterialModel::Skin,
         MaterialModel::Eye,
@@ -66,6 +68,7 @@ impl MaterialModel {
         MaterialModel::Plastic,
         MaterialModel::Metal,
         MaterialModel::Lens,
+        MaterialModel::Cornea,
     ];
 
     /// The model called `name` ([`MaterialModel::name`], exact, lower case), `None` for
@@ -86,6 +89,7 @@ impl MaterialModel {
             MaterialModel::Plastic => "plastic",
             MaterialModel::Metal => "metal",
             MaterialModel::Lens => "lens",
+            MaterialModel::Cornea => "cornea",
         }
     }
 
@@ -94,7 +98,7 @@ impl MaterialModel {
     pub fn class(self) -> ObjectClass {
         match self {
             MaterialModel::Skin => ObjectClass::Skin,
-            MaterialModel::Eye => ObjectClass::Eyes,
+            MaterialModel::Eye | MaterialModel::Cornea => ObjectClass::Eyes,
             MaterialModel::Mouth | MaterialModel::Teeth => ObjectClass::Mouth,
             MaterialModel::Cloth => ObjectClass::Garment,
             MaterialModel::Lens => ObjectClass::Lens,
@@ -128,6 +132,7 @@ impl Material {
     /// | `plastic` | specular 1, IOR 1.5, metalness 0 | colour, roughness | other |
     /// | `metal` | metalness 1 | colour (= F0), roughness | other |
     /// | `lens` | transmission 1, metalness 0 | IOR (1.5 unless the file has KHR_materials_ior), colour, roughness | lens |
+    /// | `cornea` | transmission 1, thin_walled, IOR 1.376, specular 1, specular_color 1, metalness 0, opacity 1 (MakeHuman's BLEND 0.08 stood in for clear) | nothing else matters to a clear sheet | eyes |
     pub fn apply_model(&mut self, model: MaterialModel) {
         self.model = model;
         if model == MaterialModel::Gltf {
@@ -210,6 +215,15 @@ impl Material {
                 self.transmission = 1.0;
                 self.metallic = 0.0;
             }
+            MaterialModel::Cornea => {
+                self.transmission = 1.0;
+                self.thin_walled = true;
+                self.ior = 1.376;
+                self.specular = 1.0;
+                self.specular_color = [1.0; 3];
+                self.metallic = 0.0;
+                self.opacity = 1.0;
+            }
         }
     }
 }
@@ -253,6 +267,8 @@ enum Kind {
     Colour,
     /// [r, g, b], each in (0, 100].
     Radius,
+    /// true or false.
+    Bool,
 }
 
 const UNIT: Kind = Kind::Scalar {
@@ -275,6 +291,7 @@ fn kind_of(key: &str) -> Option<Kind> {
         | "coat_roughness" | "sheen" | "sheen_roughness" | "transmission" | "opacity" => UNIT,
         "specular_IOR" | "coat_IOR" => IOR,
         "subsurface_radius" => Kind::Radius,
+        "thin_walled" => Kind::Bool,
         "subsurface_scale" => Kind::Scalar {
             lo: 0.0,
             hi: 1.0,
@@ -376,7 +393,8 @@ fn rgb(v: &Value, kind: Kind) -> Result<[f32; 3], String> {
 /// `specular`, `specular_roughness`, `subsurface`, `coat`, `coat_roughness`, `sheen`,
 /// `sheen_roughness`, `transmission`, `opacity` in [0, 1]; `specular_IOR`, `coat_IOR` in
 /// [1, 3]; `subsurface_radius` [r, g, b], each in (0, 100] (in units of the scale);
-/// `subsurface_scale` in (0, 1] metres; `subsurface_anisotropy` in [-0.95, 0.95].
+/// `subsurface_scale` in (0, 1] metres; `subsurface_anisotropy` in [-0.95, 0.95];
+/// `thin_walled` true or false.
 pub fn apply_lightfarm(
     material: &mut Material,
     lightfarm: &Value,
@@ -449,6 +467,13 @@ pub fn apply_lightfarm(
         };
         let parsed = match (key.as_str(), value, kind) {
             ("subsurface_color", Value::Null, _) => Override::SubsurfaceBase,
+            (_, Value::Bool(b), Kind::Bool) => Override::Bool(*b),
+            (_, _, Kind::Bool) => {
+                return Err(bad(
+                    key,
+                    format!("must be true or false, not {}", type_name(value)),
+                ))
+            }
             (_, _, Kind::Scalar { lo, hi, open_lo }) => {
                 Override::Scalar(scalar(value, lo, hi, open_lo).map_err(|r| bad(key, r))?)
             }
@@ -467,6 +492,7 @@ pub fn apply_lightfarm(
 
 enum Override {
     Scalar(f32),
+    Bool(bool),
     Rgb([f32; 3]),
     /// `subsurface_color: null`.
     SubsurfaceBase,
@@ -475,6 +501,10 @@ enum Override {
 fn set(m: &mut Material, key: &str, value: Override) {
     match value {
         Override::SubsurfaceBase => m.subsurface_color = None,
+        Override::Bool(b) => match key {
+            "thin_walled" => m.thin_walled = b,
+            _ => unreachable!("{key} is checked by kind_of"),
+        },
         Override::Rgb(c) => match key {
             "base_color" => m.base_color = [c[0], c[1], c[2], m.base_color[3]],
             "specular_color" => m.specular_color = c,

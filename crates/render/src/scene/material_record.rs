@@ -43,6 +43,7 @@ pub struct MaterialRecord {
     pub sheen: f32,
     pub sheen_color: [f32; 3],
     pub sheen_roughness: f32,
+    pub thin_walled: bool,
 }
 
 impl From<&Material> for MaterialRecord {
@@ -79,6 +80,7 @@ impl From<&Material> for MaterialRecord {
             sheen_color,
             sheen_roughness,
             specular_texture,
+            thin_walled,
         } = m.clone();
         MaterialRecord {
             name,
@@ -110,6 +112,7 @@ impl From<&Material> for MaterialRecord {
             sheen,
             sheen_color,
             sheen_roughness,
+            thin_walled,
         }
     }
 }

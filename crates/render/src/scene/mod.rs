@@ -143,7 +143,8 @@ pub struct Material {
     pub ior: f32,
     pub double_sided: bool,
     /// Coverage in [0, 1] (glTF alpha): 1 for OPAQUE, the base-colour alpha for BLEND, 0 or 1 by
-    /// the cutoff for MASK. Rendered as stochastic see-through (MakeHuman's corneas are BLEND 0.08).
+    /// the cutoff for MASK. Rendered as stochastic see-through (MakeHuman's corneas are BLEND 0.08
+    /// in the file; the `cornea` model makes them clear instead).
     pub opacity: f32,
     /// Which surface model renders this material: [`MaterialModel::Gltf`] (the glTF
     /// metallic-roughness mapping) unless the file's `extras.lightfarm` names another. The
@@ -173,8 +174,13 @@ pub struct Material {
     pub sheen: f32,
     pub sheen_color: [f32; 3],
     pub sheen_roughness: f32,
-    /// A map multiplying `specular` (its red channel, linear), e.g. a scan's specular albedo.
+    /// A map multiplying `specular` (its A channel, linear, as KHR_materials_specular's
+    /// specularTexture), e.g. a scan's specular-intensity map.
     pub specular_texture: Option<u32>,
+    /// Standard Surface `thin_walled`: a transmissive surface (transmission > 0.5) is a thin
+    /// clear sheet, one surface that reflects and passes light straight through (an eye's
+    /// cornea), instead of the boundary of a refracting solid (a lens).
+    pub thin_walled: bool,
 }
 
 /// The surface models a material can name in `extras.lightfarm.model`.
@@ -200,6 +206,8 @@ pub enum MaterialModel {
     Metal,
     /// Eyeglass lens: the smooth dielectric.
     Lens,
+    /// An eye's cornea: a thin-walled clear sheet (IOR 1.376) over the iris.
+    Cornea,
 }
 
 impl MaterialModel {
@@ -287,6 +295,7 @@ impl Default for Material {
             sheen_color: [1.0; 3],
             sheen_roughness: 0.3,
             specular_texture: None,
+            thin_walled: false,
         }
     }
 }

@@ -66,6 +66,43 @@ pub fn front_camera() -> Camera {
     Camera::look_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 30.0).expect("valid camera")
 }
 
+/// Camera ray (world direction) through sub-pixel point (sx, sy) ∈ [-1, 1]² of `front_camera`.
+pub fn front_ray(sx: f32, sy: f32) -> Vec3 {
+    let tan_half = (15.0f32).to_radians().tan();
+    Vec3::new(sx * tan_half, sy * tan_half, -1.0).normalize()
+}
+
+/// For each pixel, the mean of `f(cos θ)` over 8×8 sub-pixel rays that hit the analytic sphere
+/// of `radius` at the origin (θ between the ray and the sphere's normal), or None where a
+/// sub-pixel ray misses it.
+pub fn over_sphere_pixels(size: u32, radius: f32, f: impl Fn(f64) -> f64) -> Vec<Option<f64>> {
+    let eye = Vec3::new(0.0, 0.0, 3.0);
+    let mut out = Vec::new();
+    for py in 0..size {
+        for px in 0..size {
+            let mut sum = Some(0.0);
+            for a in 0..8 {
+                for b in 0..8 {
+                    let sx = ((px as f32 + (a as f32 + 0.5) / 8.0) / size as f32) * 2.0 - 1.0;
+                    let sy = 1.0 - ((py as f32 + (b as f32 + 0.5) / 8.0) / size as f32) * 2.0;
+                    let d = front_ray(sx, sy);
+                    let bq = eye.dot(d);
+                    let disc = bq * bq - (eye.length_squared() - radius * radius);
+                    if disc < 0.0 {
+                        sum = None;
+                        continue;
+                    }
+                    let hit = eye + d * (-bq - disc.sqrt());
+                    let n = hit / radius;
+                    sum = sum.map(|s| s + f(f64::from(n.dot(-d))) / 64.0);
+                }
+            }
+            out.push(sum);
+        }
+    }
+    out
+}
+
 pub fn constant_light(value: f32) -> EnvLight {
     EnvLight {
         name: "constant".into(),
