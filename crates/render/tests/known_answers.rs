@@ -410,35 +410,6 @@ fn white_sphere_in_a_glass_shell() -> Scene {
     scene
 }
 
-/// Renders with paths long enough (16) that the light shuttling between the sphere and the
-/// shell is not cut off: at 8 scattering events ~3% of it is.
-fn render_deep(
-    scene: &Scene,
-    camera: lightfarm_render::scene::Camera,
-    size: u32,
-    spp: u32,
-) -> lightfarm_render::RenderOutput {
-    let settings = lightfarm_render::RenderSettings {
-        width: size,
-        height: size,
-        spp,
-        seed: 6,
-        max_depth: 16,
-        rr_depth: 16,
-        camera,
-        passes: Vec::new(),
-    };
-    let packed = lightfarm_render::gpu_scene::pack_scene(scene).expect("pack");
-    common::renderer()
-        .render(
-            &packed,
-            &[common::constant_light(1.0)],
-            &settings,
-            &mut |_| {},
-        )
-        .expect("render")
-}
-
 /// Furnace with clear glass: nothing absorbs, so radiance is 1 everywhere inside the shell,
 /// and a camera between the sphere and the shell sees exactly 1. The light reaching the sphere
 /// through the glass is estimated twice — shadow rays through thin glass, and BSDF-sampled
@@ -449,7 +420,14 @@ fn furnace_white_sphere_inside_clear_glass_is_one() {
     let camera =
         lightfarm_render::scene::Camera::look_at(Vec3::new(0.0, 0.0, 0.45), Vec3::ZERO, 20.0)
             .expect("camera");
-    let out = render_deep(&white_sphere_in_a_glass_shell(), camera, 24, 64);
+    let out = common::render_deep(
+        &white_sphere_in_a_glass_shell(),
+        camera,
+        24,
+        64,
+        6,
+        Vec::new(),
+    );
     assert!(
         out.mask.iter().all(|m| *m > 0.999),
         "the sphere fills the view"
@@ -479,11 +457,13 @@ fn furnace_white_sphere_seen_through_clear_glass() {
     let size = 48;
     // A camera ray gets through or not (σ ≈ 0.27 per sample): 256 spp over ~190 px puts the
     // mean's noise near 0.001.
-    let out = render_deep(
+    let out = common::render_deep(
         &white_sphere_in_a_glass_shell(),
         common::front_camera(),
         size,
         256,
+        6,
+        Vec::new(),
     );
     // Per pixel, the mean of T over sub-pixel rays, from their impact parameter: a ray
     // meeting a sphere of radius ρ at cosine c passes the centre at b = ρ·√(1 − c²). Pixels

@@ -7,7 +7,7 @@ mod common;
 use glam::{Mat4, Vec3};
 use lightfarm_render::passes::Pass;
 use lightfarm_render::scene::{shapes, Camera, Material, MaterialModel, ObjectClass, Scene};
-use lightfarm_render::{RenderOutput, RenderSettings};
+use lightfarm_render::RenderOutput;
 
 const CORNEA_IOR: f64 = 1.376;
 
@@ -34,25 +34,7 @@ fn scene(inner: f32, shell: bool) -> Scene {
 }
 
 fn render(scene: &Scene, camera: Camera, size: u32, spp: u32, passes: Vec<Pass>) -> RenderOutput {
-    let settings = RenderSettings {
-        width: size,
-        height: size,
-        spp,
-        seed: 11,
-        max_depth: 16,
-        rr_depth: 16,
-        camera,
-        passes,
-    };
-    let packed = lightfarm_render::gpu_scene::pack_scene(scene).expect("pack");
-    common::renderer()
-        .render(
-            &packed,
-            &[common::constant_light(1.0)],
-            &settings,
-            &mut |_| {},
-        )
-        .expect("render")
+    common::render_deep(scene, camera, size, spp, 11, passes)
 }
 
 fn grey(p: [f32; 3]) -> f64 {

@@ -128,6 +128,32 @@ pub fn render(scene: &Scene, lights: &[EnvLight], size: u32, spp: u32, seed: u32
         .expect("render")
 }
 
+/// Renders in a furnace of 1 with paths long enough (16) that light shuttling between a
+/// sphere and a shell around it is not cut off: at 8 scattering events ~3% of it is.
+pub fn render_deep(
+    scene: &Scene,
+    camera: Camera,
+    size: u32,
+    spp: u32,
+    seed: u32,
+    passes: Vec<lightfarm_render::passes::Pass>,
+) -> RenderOutput {
+    let settings = RenderSettings {
+        width: size,
+        height: size,
+        spp,
+        seed,
+        max_depth: 16,
+        rr_depth: 16,
+        camera,
+        passes,
+    };
+    let packed = pack_scene(scene).expect("pack");
+    renderer()
+        .render(&packed, &[constant_light(1.0)], &settings, &mut |_| {})
+        .expect("render")
+}
+
 /// Pearson's chi-square goodness of fit as pbrt-v4 and Mitsuba 3 run it: cells with expected
 /// count < 5 are pooled, a sample in a cell of zero expected count fails outright, and the
 /// p-value is compared against 0.01 with a Šidák correction for `tests` tests.
