@@ -120,13 +120,9 @@ fn job_gather(p: u32) {
         let l = probe_in[b].xyz;
         if (all(l == l) && max3(l) < 3.0e38) {
             sum += l;
-            passes.diffuse += probe_in[b + 5u].xyz;
-            passes.specular += probe_in[b + 6u].xyz;
-            passes.sss += probe_in[b + 7u].xyz;
-            passes.coat += probe_in[b + 8u].xyz;
-            passes.sheen += probe_in[b + 9u].xyz;
-            passes.direct += probe_in[b + 10u].x;
-            passes.unshadowed += probe_in[b + 10u].y;
+            let d = probe_in[b + 10u];
+            passes_add(&passes, Passes(probe_in[b + 5u].xyz, probe_in[b + 6u].xyz, probe_in[b + 7u].xyz,
+                probe_in[b + 8u].xyz, probe_in[b + 9u].xyz, d.x, d.y));
         }
     }
     accumulate(p, sum, passes);

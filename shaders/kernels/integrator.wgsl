@@ -43,6 +43,16 @@ fn passes_zero() -> Passes {
     return Passes(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), 0.0, 0.0);
 }
 
+fn passes_add(acc: ptr<function, Passes>, p: Passes) {
+    (*acc).diffuse += p.diffuse;
+    (*acc).specular += p.specular;
+    (*acc).sss += p.sss;
+    (*acc).coat += p.coat;
+    (*acc).sheen += p.sheen;
+    (*acc).direct += p.direct;
+    (*acc).unshadowed += p.unshadowed;
+}
+
 // Fractions of later contributions per family (set at the first non-delta vertex).
 struct Split {
     diffuse: vec3<f32>,
@@ -425,13 +435,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             // A non-finite sample would poison the pixel's sum for good: drop it.
             sum += l;
             if (pc.passes != 0u) {
-                passes.diffuse += ps.diffuse;
-                passes.specular += ps.specular;
-                passes.sss += ps.sss;
-                passes.coat += ps.coat;
-                passes.sheen += ps.sheen;
-                passes.direct += ps.direct;
-                passes.unshadowed += ps.unshadowed;
+                passes_add(&passes, ps);
             }
         }
     }
