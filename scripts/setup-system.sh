@@ -5,7 +5,9 @@
 set -euo pipefail
 
 missing=()
-ldconfig -p 2>/dev/null | grep -q 'libvulkan.so.1' || missing+=(libvulkan1)
+# grep without -q reads all of ldconfig's output: with -q it exits early, ldconfig dies of
+# SIGPIPE and pipefail would report the library missing.
+ldconfig -p 2>/dev/null | grep 'libvulkan.so.1' >/dev/null || missing+=(libvulkan1)
 ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1 || missing+=(mesa-vulkan-drivers)
 if ! command -v cargo >/dev/null 2>&1; then
     echo "error: cargo not found: install Rust from https://rustup.rs (stable, 1.85 or newer)" >&2

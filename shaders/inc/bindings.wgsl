@@ -25,9 +25,12 @@ struct Instance {
     obj_to_world: mat4x4<f32>, // column-major affine
     world_to_obj: mat4x4<f32>,
     node_offset: u32,          // first CWBVH node of this instance's BLAS in `nodes`
-    tri_offset: u32,           // first triangle (leaf order) of the BLAS in tri_pos / tri_attr
-    flags: u32,
-    _pad: u32,
+    // Triangles: the BLAS's first triangle slot (leaf order) in tri_pos / tri_attr. Curves
+    // (INST_CURVES): the first vec4 of its segments in tri_pos, SEGMENT_VEC4S per segment in
+    // leaf order (traverse.wgsl `intersect_segment`), object space.
+    tri_offset: u32,
+    flags: u32,                // INST_CURVES
+    material: u32,             // curves: the material of every segment
 };
 
 struct Material {
@@ -53,6 +56,10 @@ struct Material {
     sheen_color: vec4<f32>,
     // specular-weight texture (its A channel; NO_TEX when absent), model (MODEL_*), object class (id pass), unused
     tex2: vec4<u32>,
+    // MODEL_HAIR: fibre absorption σa per unit radius (rgb), unused; (βm, βn, cuticle tilt α in
+    // radians, unused). The base colour holds the fibre's diffuse-equivalent colour.
+    hair_sigma: vec4<f32>,
+    hair: vec4<f32>,
 };
 
 struct EnvDesc {
@@ -92,6 +99,8 @@ const MODEL_GLTF: u32 = 0u;
 // Side of the directional-albedo tables (`tables`, written once by kernels/tables.wgsl).
 const LUT_N: u32 = 32u;
 const SCENE_HAS_LENS: u32 = 1u;
+// The instance's BLAS is over fibre segments (round cones with spherical caps), not triangles.
+const INST_CURVES: u32 = 1u;
 const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.318309886183791;
 

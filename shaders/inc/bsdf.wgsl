@@ -30,6 +30,10 @@ struct Surface {
     sheen_rough: f32,
     // Transmissive and thin-walled (MAT_FLAG_THIN): a clear sheet, not a refracting boundary.
     thin: bool,
+    // A fibre (MODEL_HAIR, hair.wgsl): absorption per unit radius, and (βm, βn, tilt α in
+    // radians, h). Zero for surfaces.
+    hair_sigma: vec3<f32>,
+    hair: vec4<f32>,
 };
 
 struct BsdfEval {

@@ -230,6 +230,9 @@ fn gltf_lobes(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> Lobes {
 
 // The lobe families of either model at (wo, wi); the glTF mapping has diffuse and specular.
 fn bsdf_lobes(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> Lobes {
+    if (s.model == MODEL_HAIR) {
+        return hair_lobes(s, wo, wi);
+    }
     if (is_layered(s)) {
         return layered_lobes(s, layering(s, max(wo.z, 1e-6)), wo, wi);
     }
@@ -237,11 +240,14 @@ fn bsdf_lobes(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> Lobes {
 }
 
 fn is_layered(s: Surface) -> bool {
-    return s.model != MODEL_GLTF && !is_dielectric_delta(s);
+    return s.model != MODEL_GLTF && s.model != MODEL_HAIR && !is_dielectric_delta(s);
 }
 
 // f·cos and the pdf of sampling wi by `bsdf_sample` (the subsurface lobe excluded).
 fn bsdf_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> BsdfEval {
+    if (s.model == MODEL_HAIR) {
+        return hair_eval(s, wo, wi);
+    }
     if (is_layered(s)) {
         if (wo.z <= 0.0) {
             return BsdfEval(vec3<f32>(0.0), 0.0);
@@ -252,6 +258,9 @@ fn bsdf_eval(s: Surface, wo: vec3<f32>, wi: vec3<f32>) -> BsdfEval {
 }
 
 fn bsdf_sample(s: Surface, wo: vec3<f32>, u_lobe: f32, u: vec2<f32>) -> BsdfSample {
+    if (s.model == MODEL_HAIR) {
+        return hair_sample(s, wo, u_lobe, u);
+    }
     if (is_layered(s)) {
         return layered_sample(s, wo, u_lobe, u);
     }

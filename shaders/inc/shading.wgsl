@@ -10,6 +10,10 @@ struct ShadingPoint {
     opacity: f32,       // glTF alpha coverage
     surface: Surface,
     albedo: vec3<f32>,  // base colour at the hit (the albedo pass)
+    // A fibre (hair.wgsl): frame.t is its tangent, frame.n the cylinder normal at the hit, ng
+    // the same; there is no inside or outside hemisphere, and `p` is already the spawn point
+    // on the fibre's axis (see `spawn_origin`).
+    fibre: bool,
 };
 
 fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
@@ -44,6 +48,9 @@ fn texture_sample(index: u32, uv: vec2<f32>) -> vec4<f32> {
 }
 
 fn shade_hit(ray: Ray, hit: Hit) -> ShadingPoint {
+    if (hit_is_curve(hit)) {
+        return shade_fibre(ray, hit);
+    }
     let inst = instances[hit.instance];
     let slot = hit.tri;
     let a0 = tri_attr[slot * TRI_ATTR_VEC4S];
@@ -122,8 +129,68 @@ fn shade_hit(ray: Ray, hit: Hit) -> ShadingPoint {
     let coat_alpha = max(mat.coat_sheen.x * mat.coat_sheen.x, 1e-3);
     let surface = Surface(base, clamp(metallic, 0.0, 1.0), alpha, specular, mat.spec_color_ior.xyz, mat.mrst.w, ior,
         mat.tex2.y, mat.sss.w, sss_color, mat.sss_mfp.xyz, mat.sss_mfp.w,
-        mat.coat.w, mat.coat.xyz, coat_alpha, mat.coat_sheen.y, mat.coat_sheen.z, mat.sheen_color.xyz, mat.coat_sheen.w, thin);
-    return ShadingPoint(p, ng, frame, mat_id, mat.tex.w, mat.extra.y, surface, base);
+        mat.coat.w, mat.coat.xyz, coat_alpha, mat.coat_sheen.y, mat.coat_sheen.z, mat.sheen_color.xyz, mat.coat_sheen.w, thin,
+        vec3<f32>(0.0), vec4<f32>(0.0));
+    return ShadingPoint(p, ng, frame, mat_id, mat.tex.w, mat.extra.y, surface, base, false);
+}
+
+// The signed offset h ∈ [-1, 1] of hair.wgsl for a ray leaving along `wo` from the fibre point
+// with cylinder normal `n` around tangent `t`: with ŵ the projection of wo across the fibre,
+// n = cos γ ŵ - sin γ (t × ŵ) and h = sin γ, so that the mirror reflection turns ŵ by -2γ.
+fn fibre_h(wo: vec3<f32>, n: vec3<f32>, t: vec3<f32>) -> f32 {
+    let w = wo - t * dot(wo, t);
+    let len2 = dot(w, w);
+    if (len2 < 1e-12) {
+        return 0.0;
+    }
+    return clamp(dot(n, cross(w * inverseSqrt(len2), t)), -1.0, 1.0);
+}
+
+
+fn shade_fibre(ray: Ray, hit: Hit) -> ShadingPoint {
+    let inst = instances[hit.instance];
+    let a = tri_pos[hit.tri];
+    let b = tri_pos[hit.tri + 1u];
+    let mat_id = inst.material;
+    let mat = materials[mat_id];
+    // Object space: the ray point, the closest point on the axis and the radius there.
+    let p = transform_point(inst.world_to_obj, ray.origin + hit.t * ray.dir);
+    let axis = b.xyz - a.xyz;
+    let len = max(length(axis), 1e-30);
+    let ax = axis / len;
+    let z = clamp(dot(p - a.xyz, ax), 0.0, len);
+    let c = a.xyz + ax * z;
+    var radial = p - c;
+    radial -= ax * dot(radial, ax);
+    let d_obj = transform_dir(inst.world_to_obj, ray.dir);
+    if (dot(radial, radial) < 1e-24) {
+        // The pole of a cap: the side facing the ray.
+        radial = -(d_obj - ax * dot(d_obj, ax));
+    }
+    let n_obj = normalize(radial + vec3<f32>(1e-30));
+    let t = normalize(transform_dir(inst.obj_to_world, ax));
+    var n = transform_dir(transpose(inst.world_to_obj), n_obj);
+    n = normalize(n - t * dot(n, t) + vec3<f32>(1e-30));
+    let frame = Frame(t, cross(n, t), n);
+    // Rays leave from the fibre's axis: traversal only counts entering crossings, so no ray from
+    // there sees the walls of this fibre or of the strand's next segments (a point near the
+    // surface may sit in the sliver where two tapered cones meet at a mitre and see them).
+    // The far-field fibre model does not place the exit within the width anyway.
+    let spawn = transform_point(inst.obj_to_world, c);
+    let h = fibre_h(-ray.dir, n, t);
+    var surface = Surface(mat.base_color.xyz, 0.0, 1.0, 0.0, vec3<f32>(0.0), 0.0, max(mat.spec_color_ior.w, 1.0001),
+        MODEL_HAIR, 0.0, vec3<f32>(0.0), vec3<f32>(1.0), 0.0, 0.0, vec3<f32>(0.0), 1.0, 1.5, 0.0, vec3<f32>(0.0), 1.0, false,
+        mat.hair_sigma.xyz, vec4<f32>(mat.hair.xyz, h));
+    return ShadingPoint(spawn, n, frame, mat_id, 0u, 1.0, surface, mat.base_color.xyz, true);
+}
+
+// Where a ray leaving `sp` along `dir` starts: off a surface on dir's side, or a fibre's
+// spawn point.
+fn spawn_origin(sp: ShadingPoint, dir: vec3<f32>) -> vec3<f32> {
+    if (sp.fibre) {
+        return sp.p;
+    }
+    return offset_origin(sp.p, sp.ng, dir);
 }
 
 // Offsets a ray origin off the surface along the geometric normal, scaled with the magnitude of

@@ -30,9 +30,11 @@ struct Ray {
 struct Hit {
     t: f32,
     instance: u32,
-    tri: u32,      // global triangle slot (leaf order): index into tri_pos / 3 and tri_attr / 5
-    u: f32,        // barycentric weight of vertex 1
-    v: f32,        // barycentric weight of vertex 2
+    // Triangles: the global triangle slot (leaf order), index into tri_pos / 3 and tri_attr / 5.
+    // Curves: the index in tri_pos of the segment's first vec4.
+    tri: u32,
+    u: f32,        // barycentric weight of vertex 1; curves: the fraction along the segment
+    v: f32,        // barycentric weight of vertex 2; curves: 0
 };
 
 fn no_hit() -> Hit {
@@ -137,6 +139,127 @@ fn triangle_material(slot: u32) -> u32 {
     return bitcast<u32>(tri_attr[slot * TRI_ATTR_VEC4S + 3u].w);
 }
 
+fn hit_is_curve(h: Hit) -> bool {
+    return (instances[h.instance].flags & INST_CURVES) != 0u;
+}
+
+// Material of any hit: its triangle's, or its curve instance's.
+fn hit_material(h: Hit) -> u32 {
+    if (hit_is_curve(h)) {
+        return instances[h.instance].material;
+    }
+    return triangle_material(h.tri);
+}
+
+// Entering root of the sphere (c, r) along o + t d, relative to o; -3.4e38 when the line
+// misses. The origin is first moved to the line's closest approach to c, so that r² - |o - c|²
+// keeps its digits.
+fn sphere_entry(o: vec3<f32>, d: vec3<f32>, dd: f32, c: vec3<f32>, r: f32) -> f32 {
+    let ts = dot(c - o, d) / dd;
+    let q = o + ts * d - c;
+    let disc = (r * r - dot(q, q)) / dd;
+    if (disc < 0.0) {
+        return -3.4e38;
+    }
+    return ts - sqrt(disc);
+}
+
+// Octahedral unit vector from pack2x16snorm (crates/render/src/gpu_curves.rs `oct_encode`).
+fn oct_decode(w: u32) -> vec3<f32> {
+    let e = unpack2x16snorm(w);
+    var n = vec3<f32>(e.x, e.y, 1.0 - abs(e.x) - abs(e.y));
+    let t = max(-n.z, 0.0);
+    n.x += select(t, -t, n.x >= 0.0);
+    n.y += select(t, -t, n.y >= 0.0);
+    return normalize(n);
+}
+
+// vec4s per fibre segment in tri_pos: (p0, ±r0), (p1, ±r1), (m0, octahedral m1); a negative
+// radius marks a strand end (gpu_curves.rs `Segment`).
+const SEGMENT_VEC4S: u32 = 3u;
+
+// A fibre segment: the round cone from (p0, r0) to (p1, r1) between the planes through p0 and
+// p1 with normals m0, m1 (the bisectors of the strand's bends, so consecutive segments join
+// into one closed tube), and at a strand end the outer half of the sphere of the end radius
+// (Cycles' thick linear curves, mitred). Only entering crossings count, so a ray that starts inside a fibre
+// (every ray leaving one: shading.wgsl spawns them just inside) never sees its walls.
+// Returns (t, fraction along the segment, 1) or t = -1. The ray origin is moved next to the
+// segment before solving: hair is ~1e-4 of the distance to the camera.
+fn intersect_segment(base: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, tmax: f32) -> vec3<f32> {
+    let a = tri_pos[base];
+    let b = tri_pos[base + 1u];
+    let c = tri_pos[base + 2u];
+    let p0 = a.xyz;
+    let p1 = b.xyz;
+    let r0 = abs(a.w);
+    let r1 = abs(b.w);
+    let dd = dot(dir, dir);
+    let shift = dot(0.5 * (p0 + p1) - origin, dir) / dd;
+    let o = origin + shift * dir;
+    let axis = p1 - p0;
+    let len = length(axis);
+    var best = 3.4e38;
+    var frac = 0.0;
+    if (len > 0.0) {
+        let ax = axis / len;
+        let m0 = c.xyz;
+        let m1 = oct_decode(bitcast<u32>(c.w));
+        let k = (r1 - r0) / len;
+        let oc = o - p0;
+        let oz = dot(oc, ax);
+        let dz = dot(dir, ax);
+        let op = oc - oz * ax;
+        let dp = dir - dz * ax;
+        let rr = r0 + k * oz;
+        let qa = dot(dp, dp) - k * k * dz * dz;
+        let qb = dot(op, dp) - k * dz * rr;
+        let qc = dot(op, op) - rr * rr;
+        let disc = qb * qb - qa * qc;
+        if (disc >= 0.0 && abs(qa) > 1e-30) {
+            let sd = sqrt(disc);
+            // Numerically stable roots of qa t² + 2 qb t + qc.
+            let q = -(qb + select(-sd, sd, qb >= 0.0));
+            let r_a = q / qa;
+            let r_b = select(qc / q, r_a, q == 0.0);
+            for (var i = 0u; i < 2u; i++) {
+                let tr = select(r_b, r_a, i == 0u);
+                let z = oz + tr * dz;
+                let rz = r0 + k * z;
+                let x = oc + tr * dir;
+                let xp = op + tr * dp;
+                let entering = dot(dir, xp - rz * k * ax) < 0.0;
+                let inside_cuts = dot(x, m0) >= 0.0 && dot(x - axis, m1) <= 0.0;
+                let t = tr + shift;
+                if (entering && inside_cuts && rz > 0.0 && t >= tmin && t <= tmax && t < best) {
+                    best = t;
+                    frac = clamp(z / len, 0.0, 1.0);
+                }
+            }
+        }
+    }
+    // A cap is the half of its sphere beyond the end (the other half lies inside the cone).
+    if (a.w < 0.0) {
+        let e0 = sphere_entry(o, dir, dd, p0, r0);
+        let t0 = e0 + shift;
+        if (t0 >= tmin && t0 <= tmax && t0 < best && dot(o + e0 * dir - p0, axis) <= 0.0) {
+            best = t0;
+            frac = 0.0;
+        }
+    }
+    if (b.w < 0.0) {
+        let e1 = sphere_entry(o, dir, dd, p1, r1);
+        let t1 = e1 + shift;
+        if (t1 >= tmin && t1 <= tmax && t1 < best && dot(o + e1 * dir - p1, axis) >= 0.0) {
+            best = t1;
+            frac = 1.0;
+        }
+    }
+    if (best < 3.0e38) {
+        return vec3<f32>(best, frac, 1.0);
+    }
+    return vec3<f32>(-1.0, 0.0, 0.0);
+}
+
 fn transform_point(m: mat4x4<f32>, p: vec3<f32>) -> vec3<f32> {
     return (m * vec4<f32>(p, 1.0)).xyz;
 }
@@ -150,6 +273,7 @@ fn transform_dir(m: mat4x4<f32>, d: vec3<f32>) -> vec3<f32> {
 // `only_mat` != NO_MATERIAL restricts the hits to triangles of that material (the SSS walk).
 fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, best: ptr<function, Hit>, any_hit: bool, only_mat: u32) -> bool {
     let inst = instances[inst_id];
+    let curves = (inst.flags & INST_CURVES) != 0u;
     let inv_dir = vec3<f32>(safe_inverse(dir.x), safe_inverse(dir.y), safe_inverse(dir.z));
     let oct = octant_inv4(dir);
     let sb = stack_base * BLAS_STACK;
@@ -161,14 +285,24 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
         while (prims.y != 0u) {
             let local = firstLeadingBit(prims.y);
             prims.y &= ~(1u << local);
-            let slot = inst.tri_offset + prims.x + local;
             let tmax = select((*best).t, 3.4e38, (*best).t < 0.0);
-            let h = intersect_triangle(slot, origin, dir, tmin, tmax);
+            var slot: u32;
+            var h: vec3<f32>;
+            var mat: u32;
+            if (curves) {
+                slot = inst.tri_offset + SEGMENT_VEC4S * (prims.x + local);
+                h = intersect_segment(slot, origin, dir, tmin, tmax);
+                mat = inst.material;
+            } else {
+                slot = inst.tri_offset + prims.x + local;
+                h = intersect_triangle(slot, origin, dir, tmin, tmax);
+                mat = triangle_material(slot);
+            }
             // Shadow rays (any hit) see through mostly transparent surfaces (opacity < 0.5).
-            let see_through = any_hit && materials[triangle_material(slot)].extra.y < 0.5;
-            let other_mat = only_mat != NO_MATERIAL && triangle_material(slot) != only_mat;
+            let see_through = any_hit && materials[mat].extra.y < 0.5;
+            let other_mat = only_mat != NO_MATERIAL && mat != only_mat;
             if (h.x >= 0.0 && ((*best).t < 0.0 || h.x < (*best).t) && !see_through && !other_mat) {
-                *best = Hit(h.x, inst_id, slot, h.y, h.z);
+                *best = Hit(h.x, inst_id, slot, h.y, select(h.z, 0.0, curves));
                 found = true;
                 if (any_hit) {
                     return true;

@@ -35,7 +35,8 @@ fn walk_offset(p: vec3<f32>) -> f32 {
 // The surface a walk leaves through: white Lambert (the medium's colour is in the walk weight).
 fn exit_surface() -> Surface {
     return Surface(vec3<f32>(1.0), 0.0, 1.0, 0.0, vec3<f32>(0.0), 0.0, 1.5,
-        MODEL_GLTF, 0.0, vec3<f32>(0.0), vec3<f32>(1.0), 0.0, 0.0, vec3<f32>(0.0), 1.0, 1.5, 0.0, vec3<f32>(0.0), 1.0, false);
+        MODEL_GLTF, 0.0, vec3<f32>(0.0), vec3<f32>(1.0), 0.0, 0.0, vec3<f32>(0.0), 1.0, 1.5, 0.0, vec3<f32>(0.0), 1.0, false,
+        vec3<f32>(0.0), vec4<f32>(0.0));
 }
 
 fn random_walk(sp: ShadingPoint, inst: u32, wo: vec3<f32>, rng: ptr<function, Rng>, rays: ptr<function, u32>) -> WalkExit {

@@ -5,6 +5,7 @@
 //!include inc/env.wgsl
 //!include inc/bsdf.wgsl
 //!include inc/layered.wgsl
+//!include inc/hair.wgsl
 //!include inc/subsurface.wgsl
 //!include inc/shading.wgsl
 //!include inc/walk.wgsl
@@ -131,7 +132,7 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
         if (h.t < 0.0) {
             return tr;
         }
-        let mat = materials[triangle_material(h.tri)];
+        let mat = materials[hit_material(h)];
         if (any_hit || ((mat.tex.w & MAT_FLAG_CLEAR) == 0u && mat.extra.y >= 0.5)) {
             return 0.0;
         }
@@ -143,7 +144,7 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
         } else {
             tr *= 1.0 - mat.extra.y;
         }
-        origin = offset_origin(sp.p, sp.ng, dir);
+        origin = spawn_origin(sp, dir);
     }
     return 0.0;
 }
@@ -224,11 +225,11 @@ fn trace_path(start: PathStart, p: u32, sample: u32, light: u32, defer_slot: u32
         // Next-event estimation of the environment.
         if (!delta) {
             let ls = env_sample(light, rng_next_u32(rng), vec3<f32>(rng_next(rng), rng_next2(rng)));
-            if (ls.pdf > 0.0 && dot(ls.dir, sp.ng) > 0.0) {
+            if (ls.pdf > 0.0 && (sp.fibre || dot(ls.dir, sp.ng) > 0.0)) {
                 let wi = to_local(sp.frame, ls.dir);
                 let e = bsdf_eval(sp.surface, wo, wi);
                 if (e.pdf > 0.0 || max3(e.f_cos) > 0.0) {
-                    let vis = shadow_transmittance(offset_origin(sp.p, sp.ng, ls.dir), ls.dir, rays);
+                    let vis = shadow_transmittance(spawn_origin(sp, ls.dir), ls.dir, rays);
                     let w = power_heuristic(ls.pdf, e.pdf);
                     if (vis > 0.0) {
                         radiance += throughput * e.f_cos * ls.radiance * (vis * w / ls.pdf);
@@ -283,7 +284,7 @@ fn trace_path(start: PathStart, p: u32, sample: u32, light: u32, defer_slot: u32
             let wi_world = to_world(sp.frame, bs.wi);
             // Reject directions that the shading normal allows but the geometry does not.
             let below = dot(wi_world, sp.ng) < 0.0;
-            if (below && !delta) {
+            if (below && !delta && !sp.fibre) {
                 break;
             }
             throughput *= bs.weight;
@@ -304,7 +305,7 @@ fn trace_path(start: PathStart, p: u32, sample: u32, light: u32, defer_slot: u32
                 let refracted = bs.wi.z < 0.0 && (sp.flags & MAT_FLAG_CLEAR) != 0u;
                 through_lenses = through_lenses && refracted && lens_layers < SHADOW_LENS_LAYERS;
             }
-            ray = Ray(offset_origin(sp.p, sp.ng, wi_world), wi_world, 0.0, 3.4e38);
+            ray = Ray(spawn_origin(sp, wi_world), wi_world, 0.0, 3.4e38);
         }
 
         if (!roulette(&throughput, depth, rng)) {

@@ -3,6 +3,7 @@
 //!include inc/frame.wgsl
 //!include inc/bsdf.wgsl
 //!include inc/layered.wgsl
+//!include inc/hair.wgsl
 
 // Directional albedo tables of the layered model's lobes, computed once per device from the
 // lobes' own code (so the albedo scaling removes exactly the energy those lobes reflect):

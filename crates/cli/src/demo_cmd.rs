@@ -77,6 +77,8 @@ fn output_from_exr(bytes: &[u8]) -> Result<RenderOutput> {
             spp: 0,
             lightings: 2,
             triangles: 0,
+            curve_segments: 0,
+            geometry_bytes: 0,
         },
     })
 }

@@ -174,10 +174,19 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     settings.validate()?;
 
+    let pack_start = std::time::Instant::now();
     let packed = pack_scene(&scene).with_context(|| format!("--scene {}", args.scene.display()))?;
+    let pack_seconds = pack_start.elapsed().as_secs_f64();
     let mut renderer = Renderer::new(&device)?;
     renderer.set_walk_schedule(walk);
-    tracing::info!(device = %renderer.device().name, triangles = packed.triangle_count, "rendering");
+    tracing::info!(
+        device = %renderer.device().name,
+        triangles = packed.triangle_count,
+        curve_segments = packed.segment_count,
+        geometry_mib = packed.geometry_bytes() as f64 / (1 << 20) as f64,
+        bvh_seconds = pack_seconds,
+        "rendering"
+    );
 
     let bar = ProgressBar::new(args.spp as u64 * lights.len() as u64);
     bar.set_style(
@@ -203,7 +212,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "width": width, "height": height, "spp": args.spp, "seed": args.seed, "max_depth": args.max_depth,
         "passes": passes.iter().map(|p| p.name()).collect::<Vec<_>>(),
     });
-    let stats = serde_json::to_value(&out.stats)?;
+    let mut stats = serde_json::to_value(&out.stats)?;
+    // The BVH builds and flattening, before the render's own time.
+    stats["bvh_build_seconds"] = serde_json::json!(pack_seconds);
     let attributes = vec![
         (
             "lightfarm.renderer".to_string(),

@@ -1,5 +1,6 @@
-//! Flattens a [`Scene`] into the arrays the shaders read: one obvhs CWBVH per mesh (BLAS) and a
-//! CWBVH over the instances (TLAS), triangles reordered into leaf order, materials and textures.
+//! Flattens a [`Scene`] into the arrays the shaders read: one obvhs CWBVH per mesh (BLAS) and per
+//! curve set (`gpu_curves`), a CWBVH over the instances (TLAS), triangles and fibre segments
+//! reordered into leaf order, materials and textures.
 //! Pure CPU work with no Vulkan, so the traversal tests can use the same data as a reference.
 
 use std::time::Duration;
@@ -12,11 +13,12 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 
+use crate::gpu_curves::{pack_curve_set, CurveBlas};
 use crate::gpu_types::{
-    InstanceGpu, MaterialGpu, MAT_FLAG_LENS, MAT_FLAG_THIN, NO_NODE, NO_TEX, SCENE_HAS_LENS,
-    TRI_ATTR_VEC4S,
+    InstanceGpu, MaterialGpu, INST_CURVES, MAT_FLAG_LENS, MAT_FLAG_THIN, NO_NODE, NO_TEX,
+    SCENE_HAS_LENS, TRI_ATTR_VEC4S,
 };
-use crate::scene::{Material, Scene};
+use crate::scene::{Material, MaterialModel, Scene};
 use crate::RenderError;
 
 /// One bottom-level structure: a mesh's triangles in object space.
@@ -34,11 +36,18 @@ pub struct PackedScene {
     pub nodes: Vec<CwBvhNode>,
     pub tri_pos: Vec<[f32; 4]>,
     pub tri_attr: Vec<[f32; 4]>,
-    /// In TLAS leaf order: GPU instance i is `scene.instances[instance_order[i]]`.
+    /// In TLAS leaf order: GPU instance i is `scene.instances[instance_order[i]]`, or curve set
+    /// `curve_blas[instance_curves[i]]` where `instance_order[i]` is `u32::MAX`.
     pub instances: Vec<InstanceGpu>,
     pub instance_order: Vec<u32>,
-    /// Index into `blas` for each GPU instance.
+    /// Index into `blas` for each GPU instance (`u32::MAX` for curves).
     pub instance_blas: Vec<u32>,
+    /// Index into `curve_blas` for each GPU instance (`u32::MAX` for meshes).
+    pub instance_curves: Vec<u32>,
+    /// One per curve set with segments.
+    pub curve_blas: Vec<CurveBlas>,
+    /// Fibre segments over all curve sets.
+    pub segment_count: usize,
     pub materials: Vec<MaterialGpu>,
     pub tex_data: Vec<u32>,
     pub tex_desc: Vec<[u32; 4]>,
@@ -115,7 +124,29 @@ fn material_gpu(m: &Material, texture_count: u32) -> MaterialGpu {
             m.class as u32,
             0,
         ],
+        hair_sigma: [0.0; 4],
+        hair: [0.0; 4],
     }
+}
+
+/// A hair material: the fibre's absorption and roughness, and its diffuse-equivalent colour as
+/// the base colour (the albedo pass).
+fn hair_gpu(m: &Material, texture_count: u32) -> MaterialGpu {
+    let mut g = material_gpu(m, texture_count);
+    let sigma = crate::hair::sigma_a_from_melanin(m.melanin, m.melanin_redness);
+    let bn = m.azimuthal_roughness.clamp(0.0, 1.0);
+    let c = crate::hair::color_of_sigma_a(sigma, bn);
+    g.base_color = [c[0], c[1], c[2], 1.0];
+    g.hair_sigma = [sigma[0], sigma[1], sigma[2], 0.0];
+    g.hair = [
+        m.longitudinal_roughness.clamp(0.0, 1.0),
+        bn,
+        m.cuticle_tilt_deg.clamp(-10.0, 10.0).to_radians(),
+        0.0,
+    ];
+    g.tex = [NO_TEX, NO_TEX, NO_TEX, 0];
+    g.extra[1] = 1.0;
+    g
 }
 
 fn transform_aabb(m: &Mat4, a: &Aabb) -> Aabb {
@@ -223,6 +254,21 @@ pub fn pack_scene(scene: &Scene) -> Result<PackedScene, RenderError> {
     }
     debug_assert_eq!(tri_attr.len(), slot_triangle.len() * TRI_ATTR_VEC4S);
 
+    // Fibres: one BLAS per curve set, segments after the triangles in tri_pos.
+    let mut curve_blas: Vec<CurveBlas> = Vec::new();
+    for (ci, c) in scene.curves.iter().enumerate() {
+        if c.material >= material_count {
+            return Err(RenderError::InvalidScene(format!(
+                "curves '{}' use material {} but the scene has {material_count}",
+                c.name, c.material
+            )));
+        }
+        if let Some(b) = pack_curve_set(ci as u32, c, &mut nodes, &mut tri_pos)? {
+            curve_blas.push(b);
+        }
+    }
+    let segment_count = curve_blas.iter().map(|b| b.segments.len()).sum();
+
     // Top level over the instances whose mesh has triangles.
     let mut live: Vec<(u32, u32, Mat4)> = Vec::new(); // (scene instance, blas, transform)
     for (ii, inst) in scene.instances.iter().enumerate() {
@@ -240,30 +286,49 @@ pub fn pack_scene(scene: &Scene) -> Result<PackedScene, RenderError> {
     let mut instances = Vec::new();
     let mut instance_order = Vec::new();
     let mut instance_blas = Vec::new();
-    let tlas_node_offset = if live.is_empty() {
+    let mut instance_curves = Vec::new();
+    let tlas_node_offset = if live.is_empty() && curve_blas.is_empty() {
         NO_NODE
     } else {
-        let boxes: Vec<Aabb> = live
+        let mut boxes: Vec<Aabb> = live
             .iter()
             .map(|(_, bi, m)| transform_aabb(m, &blas[*bi as usize].bvh.total_aabb))
             .collect();
+        boxes.extend(curve_blas.iter().map(|b| b.bvh.total_aabb));
         let tlas = build_cwbvh(&boxes, build_params(), &mut Duration::default());
         let offset = nodes.len() as u32;
         nodes.extend_from_slice(&tlas.nodes);
         for &leaf in &tlas.primitive_indices {
-            let (ii, bi, m) = live[leaf as usize];
-            let b = &blas[bi as usize];
-            instances.push(InstanceGpu {
-                obj_to_world: mat_cols(&m),
-                world_to_obj: mat_cols(&m.inverse()),
-                node_offset: b.node_offset,
-                tri_offset: b.tri_offset,
-                flags: 0,
-                _pad: 0,
-            });
-            instance_order.push(ii);
-            instance_blas.push(bi);
-            triangle_count += b.triangles.len();
+            let leaf = leaf as usize;
+            if let Some(&(ii, bi, m)) = live.get(leaf) {
+                let b = &blas[bi as usize];
+                instances.push(InstanceGpu {
+                    obj_to_world: mat_cols(&m),
+                    world_to_obj: mat_cols(&m.inverse()),
+                    node_offset: b.node_offset,
+                    tri_offset: b.tri_offset,
+                    flags: 0,
+                    material: 0,
+                });
+                instance_order.push(ii);
+                instance_blas.push(bi);
+                instance_curves.push(u32::MAX);
+                triangle_count += b.triangles.len();
+            } else {
+                let ci = leaf - live.len();
+                let b = &curve_blas[ci];
+                instances.push(InstanceGpu {
+                    obj_to_world: mat_cols(&Mat4::IDENTITY),
+                    world_to_obj: mat_cols(&Mat4::IDENTITY),
+                    node_offset: b.node_offset,
+                    tri_offset: b.seg_offset,
+                    flags: INST_CURVES,
+                    material: scene.curves[b.set as usize].material,
+                });
+                instance_order.push(u32::MAX);
+                instance_blas.push(u32::MAX);
+                instance_curves.push(ci as u32);
+            }
         }
         offset
     };
@@ -291,7 +356,10 @@ pub fn pack_scene(scene: &Scene) -> Result<PackedScene, RenderError> {
     let mut materials: Vec<MaterialGpu> = scene
         .materials
         .iter()
-        .map(|m| material_gpu(m, tex_count))
+        .map(|m| match m.model {
+            MaterialModel::Hair => hair_gpu(m, tex_count),
+            _ => material_gpu(m, tex_count),
+        })
         .collect();
     if materials.is_empty() {
         materials.push(material_gpu(&Material::default(), 0));
@@ -304,6 +372,9 @@ pub fn pack_scene(scene: &Scene) -> Result<PackedScene, RenderError> {
         instances,
         instance_order,
         instance_blas,
+        instance_curves,
+        curve_blas,
+        segment_count,
         materials,
         tex_data,
         tex_desc,
@@ -315,6 +386,13 @@ pub fn pack_scene(scene: &Scene) -> Result<PackedScene, RenderError> {
 }
 
 impl PackedScene {
+    /// Bytes of geometry the kernels read: BVH nodes, triangle positions and attributes, fibre
+    /// segments.
+    pub fn geometry_bytes(&self) -> u64 {
+        (self.nodes.len() * std::mem::size_of::<CwBvhNode>()
+            + (self.tri_pos.len() + self.tri_attr.len()) * 16) as u64
+    }
+
     /// SCENE_HAS_LENS when some material is a lens or a thin clear sheet (shadow rays must
     /// then look through it).
     pub fn scene_flags(&self) -> u32 {
@@ -338,6 +416,9 @@ impl PackedScene {
             instances: Vec::new(),
             instance_order: Vec::new(),
             instance_blas: Vec::new(),
+            instance_curves: Vec::new(),
+            curve_blas: Vec::new(),
+            segment_count: 0,
             materials: vec![material_gpu(&Material::default(), 0)],
             tex_data: Vec::new(),
             tex_desc: Vec::new(),

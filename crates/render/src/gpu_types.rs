@@ -11,6 +11,8 @@ pub const MAT_FLAG_LENS: u32 = 1;
 pub const MAT_FLAG_THIN: u32 = 2;
 /// Some material is see-through (MAT_FLAG_LENS or MAT_FLAG_THIN): shadow rays look through it.
 pub const SCENE_HAS_LENS: u32 = 1;
+/// The instance's BLAS is over fibre segments (INST_CURVES in bindings.wgsl).
+pub const INST_CURVES: u32 = 1;
 /// vec4s of per-triangle attributes in `tri_attr` (see shaders/inc/traverse.wgsl).
 pub const TRI_ATTR_VEC4S: usize = 5;
 /// u32 words per CWBVH node.
@@ -42,9 +44,12 @@ pub struct InstanceGpu {
     pub obj_to_world: [[f32; 4]; 4],
     pub world_to_obj: [[f32; 4]; 4],
     pub node_offset: u32,
+    /// Triangles: the first triangle slot; curves: the first vec4 of the segments in tri_pos.
     pub tri_offset: u32,
+    /// INST_CURVES
     pub flags: u32,
-    pub _pad: u32,
+    /// Curves: the material of every segment.
+    pub material: u32,
 }
 
 #[repr(C)]
@@ -71,6 +76,10 @@ pub struct MaterialGpu {
     pub sheen_color: [f32; 4],
     /// specular-weight texture, model, object class, unused
     pub tex2: [u32; 4],
+    /// Hair: σa per unit radius, unused
+    pub hair_sigma: [f32; 4],
+    /// Hair: βm, βn, cuticle tilt (radians), unused
+    pub hair: [f32; 4],
 }
 
 #[repr(C)]
@@ -109,7 +118,7 @@ pub struct Push {
 
 const _: () = assert!(std::mem::size_of::<Params>() == 112);
 const _: () = assert!(std::mem::size_of::<InstanceGpu>() == 144);
-const _: () = assert!(std::mem::size_of::<MaterialGpu>() == 176);
+const _: () = assert!(std::mem::size_of::<MaterialGpu>() == 208);
 /// Side of the directional-albedo tables (LUT_N in shaders/inc/bindings.wgsl).
 pub const LUT_N: usize = 32;
 /// vec4s per pixel of the appendix-pass accumulator (PASS_VEC4S in integrator.wgsl).

@@ -4,11 +4,13 @@
 //! arrays, BVH builds), `gpu_types` (the shared `#[repr(C)]` structs), `vulkan` (the only module
 //! that touches ash), `renderer` (dispatching the integrator), `output` (EXR and PNG), `probe`
 //! (running the sampling routines and traversal on the device for tests), `tables` (the layered
-//! model's directional-albedo tables).
+//! model's directional-albedo tables), `hair` (the fibre material's absorption and colour).
 
+pub mod gpu_curves;
 pub mod gpu_env;
 pub mod gpu_scene;
 pub mod gpu_types;
+pub mod hair;
 pub mod output;
 pub mod passes;
 pub mod probe;

@@ -12,6 +12,9 @@ use crate::shaders;
 use crate::vulkan::{ComputeKernel, GpuBuffer, GpuContext};
 use crate::RenderError;
 
+mod fibre;
+pub use fibre::ProbeFibre;
+
 /// The largest batch one probe call accepts (one dispatch of 64-wide groups).
 pub const MAX_PROBE: usize = 1 << 22;
 

@@ -77,6 +77,10 @@ pub struct RenderStats {
     pub spp: u32,
     pub lightings: usize,
     pub triangles: usize,
+    /// Fibre segments (hair, eyebrows) over all curve sets.
+    pub curve_segments: usize,
+    /// Geometry on the device: BVH nodes, triangle and segment data, bytes.
+    pub geometry_bytes: u64,
 }
 
 /// The passes of one render, row-major from the top-left pixel.
@@ -476,6 +480,8 @@ impl Renderer {
                 spp: settings.spp,
                 lightings: lights.len(),
                 triangles: scene.triangle_count,
+                curve_segments: scene.segment_count,
+                geometry_bytes: scene.geometry_bytes(),
             },
         })
     }

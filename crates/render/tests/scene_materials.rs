@@ -260,6 +260,12 @@ fn every_preset_sets_its_model_and_class() {
                 assert!(close(m.ior, 1.376) && close(m.specular, 1.0));
                 assert!(close(m.opacity, 1.0), "clear, not the file's 0.9 coverage");
             }
+            MaterialModel::Hair => {
+                assert_eq!(m.class, ObjectClass::Hair);
+                assert!(close(m.ior, 1.55) && close(m.cuticle_tilt_deg, 2.0));
+                assert!(close(m.longitudinal_roughness, 0.3) && close(m.azimuthal_roughness, 0.3));
+                assert!(close(m.opacity, 1.0) && m.transmission == 0.0);
+            }
             MaterialModel::Gltf => unreachable!("gltf is not an extras model"),
         }
     }
@@ -342,6 +348,7 @@ fn materials_json_records_every_parameter_in_material_order() {
         sheen_roughness: 0.5625,
         specular_texture: Some(6),
         thin_walled: true,
+        ..Material::default()
     };
     let scene = Scene {
         materials: vec![Material::default(), special],
@@ -360,10 +367,36 @@ fn materials_json_records_every_parameter_in_material_order() {
     let mut expected = RECORD_KEYS.to_vec();
     expected.sort_unstable();
     assert_eq!(keys, expected, "the record's keys");
-    // Every extras.lightfarm key is recorded under the same name.
-    for key in OVERRIDE_KEYS {
-        assert!(r.contains_key(key), "{key} is not recorded");
+    // Every extras.lightfarm key is recorded under the same name (the fibre's in `hair`, which
+    // only a hair material has).
+    let fibre_keys = [
+        "melanin",
+        "melanin_redness",
+        "longitudinal_roughness",
+        "azimuthal_roughness",
+        "cuticle_tilt",
+    ];
+    for key in OVERRIDE_KEYS.iter().filter(|k| !fibre_keys.contains(k)) {
+        assert!(r.contains_key(*key), "{key} is not recorded");
     }
+    let mut hair = Material {
+        melanin: 0.75,
+        melanin_redness: 0.25,
+        ..Material::default()
+    };
+    hair.apply_model(MaterialModel::Hair);
+    let rec = materials_json(&Scene {
+        materials: vec![hair],
+        ..Scene::default()
+    });
+    let h = rec[0]["hair"].as_object().expect("a hair record");
+    for key in fibre_keys {
+        assert!(h.contains_key(key), "{key} is not recorded for hair");
+    }
+    assert_eq!(h["melanin"], 0.75);
+    let sigma = lightfarm_render::hair::sigma_a_from_melanin(0.75, 0.25);
+    assert_eq!(h["sigma_a"][2].as_f64().map(|x| x as f32), Some(sigma[2]));
+    assert!(h["sigma_set"].as_str().is_some_and(|s| s.contains("0.506")));
     let want = json!({
         "name": "special", "model": "teeth", "class": "mouth",
         "base_color": [0.5, 0.25, 0.125, 0.75], "base_color_texture": 3,

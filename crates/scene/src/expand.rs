@@ -53,6 +53,7 @@ const STREAM_HEADSET: u64 = 6;
 const STREAM_CAMERA: u64 = 7;
 const STREAM_LIGHTING: u64 = 8;
 const STREAM_RENDER: u64 = 9;
+const STREAM_HAIR_FIBRE: u64 = 10;
 
 /// The 52 ARKit face blendshape names (Apple's `ARFaceAnchor.BlendShapeLocation`), the morph
 /// target names of the built-in heads.
@@ -274,6 +275,17 @@ pub struct HairSample {
     pub clumping: f64,
     /// Seed of the strand geometry (root positions, jitter, curl phases).
     pub seed: u64,
+    /// The fibre's longitudinal roughness βm (samples made before it had one: 0.3, the
+    /// material's default).
+    #[serde(default = "default_fibre_roughness")]
+    pub longitudinal_roughness: f64,
+    /// The fibre's azimuthal roughness βn (likewise 0.3 when absent).
+    #[serde(default = "default_fibre_roughness")]
+    pub azimuthal_roughness: f64,
+}
+
+fn default_fibre_roughness() -> f64 {
+    0.3
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -394,7 +406,12 @@ pub fn expand(spec: &ResolvedSpec, index: u64) -> Result<SampleSpec, SceneError>
         0.0
     };
     let expression = sample_expression(&mut stream(STREAM_EXPRESSION), expression_probability);
-    let hair = sample_hair(spec, &mut stream(STREAM_HAIR)).ok_or_else(|| {
+    let hair = sample_hair(
+        spec,
+        &mut stream(STREAM_HAIR),
+        &mut stream(STREAM_HAIR_FIBRE),
+    )
+    .ok_or_else(|| {
         invalid(
             "subject.hair_styles",
             "is empty or names an unknown style; list styles from spec::HAIR_STYLES".into(),
@@ -527,7 +544,13 @@ fn sample_expression(rng: &mut SampleRng, probability: f64) -> Expression {
 }
 
 /// `None` only if the spec's hair styles are empty or unknown, which validation rules out.
-fn sample_hair(spec: &ResolvedSpec, rng: &mut SampleRng) -> Option<HairSample> {
+/// The fibre's roughness has its own stream (added later), so datasets made before it keep
+/// every other hair decision.
+fn sample_hair(
+    spec: &ResolvedSpec,
+    rng: &mut SampleRng,
+    fibre: &mut SampleRng,
+) -> Option<HairSample> {
     let s = &spec.subject;
     let style = s.hair_styles.get(rng.pick(s.hair_styles.len()))?;
     let r = HAIR_RANGES.iter().find(|r| r.style == style)?;
@@ -542,6 +565,12 @@ fn sample_hair(spec: &ResolvedSpec, rng: &mut SampleRng) -> Option<HairSample> {
         clumping: draw(r.clumping),
         // 53 bits: exact in every JSON reader, including JavaScript's and Python's float paths.
         seed: rng.next_u64() >> 11,
+        longitudinal_roughness: fibre.uniform(
+            s.hair_longitudinal_roughness[0],
+            s.hair_longitudinal_roughness[1],
+        ),
+        azimuthal_roughness: fibre
+            .uniform(s.hair_azimuthal_roughness[0], s.hair_azimuthal_roughness[1]),
     })
 }
 

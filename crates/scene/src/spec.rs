@@ -169,6 +169,10 @@ pub struct SubjectSpec {
     pub garment_roughness: [f64; 2],
     pub melanin: [f64; 2],
     pub melanin_redness: [f64; 2],
+    /// Chiang et al. 2016's longitudinal roughness βm of the hair fibre, uniform in this range.
+    pub hair_longitudinal_roughness: [f64; 2],
+    /// Its azimuthal roughness βn, uniform in this range.
+    pub hair_azimuthal_roughness: [f64; 2],
     pub hair_styles: Vec<String>,
     pub expression_probability: f64,
 }
@@ -184,6 +188,10 @@ impl Default for SubjectSpec {
             garment_roughness: [0.1, 1.0],
             melanin: [0.0, 1.0],
             melanin_redness: [0.0, 1.0],
+            // Around Chiang et al.'s 0.3 / 0.3 and Arnold aiStandardHair's 0.2 default: from
+            // glossy straight hair to the duller look of coarse or curly hair.
+            hair_longitudinal_roughness: [0.15, 0.4],
+            hair_azimuthal_roughness: [0.25, 0.6],
             hair_styles: HAIR_STYLES.iter().map(|s| (*s).to_owned()).collect(),
             expression_probability: 0.7,
         }
@@ -386,6 +394,20 @@ impl DatasetSpec {
         )?;
         range_in("subject.melanin", s.melanin, 0.0, 1.0, &bad)?;
         range_in("subject.melanin_redness", s.melanin_redness, 0.0, 1.0, &bad)?;
+        range_in(
+            "subject.hair_longitudinal_roughness",
+            s.hair_longitudinal_roughness,
+            0.0,
+            1.0,
+            &bad,
+        )?;
+        range_in(
+            "subject.hair_azimuthal_roughness",
+            s.hair_azimuthal_roughness,
+            0.0,
+            1.0,
+            &bad,
+        )?;
         if s.hair_styles.is_empty() {
             return Err(bad(
                 "subject.hair_styles",

@@ -5,13 +5,13 @@ use std::path::PathBuf;
 
 use glam::{Mat4, Quat, Vec3};
 use lightfarm_render::passes::Pass;
-use lightfarm_render::scene::{Camera, Material, MaterialModel, ObjectClass, Scene};
+use lightfarm_render::scene::{Camera, MaterialModel, ObjectClass, Scene};
 use lightfarm_scene::catalog::{Asset, AssetKind, Catalog};
 use lightfarm_scene::expand::SampleSpec;
 
 use crate::garment::{Body, CoverMap, GarmentFit};
 use crate::glasses::{glasses_materials, place_glasses};
-use crate::hair::{grow_eyebrows, grow_hair, hair_albedo, Strands};
+use crate::hair::{grow_eyebrows, grow_hair, hair_fibre_material, Strands};
 use crate::head::Head;
 use crate::headset::{fit_headset, headset_materials};
 use crate::landmarks::Landmarks;
@@ -118,6 +118,19 @@ pub fn append_scene(dst: &mut Scene, src: &Scene, transform: Mat4) {
                 transform: transform * i.transform,
             }),
     );
+    // Fibres are in world space: their points move, their radii scale with the transform.
+    let scale = transform.determinant().abs().cbrt();
+    dst.curves.extend(src.curves.iter().map(|c| {
+        let mut c = c.clone();
+        for p in c.points.iter_mut() {
+            *p = transform.transform_point3(Vec3::from(*p)).to_array();
+        }
+        for r in c.radii.iter_mut() {
+            *r *= scale;
+        }
+        c.material += material_base;
+        c
+    }));
 }
 
 /// The camera of a sample: on a sphere of `radius_m` about the world origin at the sampled
@@ -222,22 +235,6 @@ fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> usize 
     removed
 }
 
-/// Strand hair and eyebrows: the glTF model (a dielectric fibre), class hair.
-fn strand_material(name: &str, albedo: [f32; 3], roughness: f32) -> Material {
-    Material {
-        name: name.to_owned(),
-        class: ObjectClass::Hair,
-        base_color: [albedo[0], albedo[1], albedo[2], 1.0],
-        metallic: 0.0,
-        roughness,
-        // Keratin's index of refraction is 1.55: a dielectric specular layer, as on a fibre.
-        specular: 1.0,
-        ior: 1.55,
-        double_sided: true,
-        ..Material::default()
-    }
-}
-
 /// Builds sample `sample`'s scene from the assets of `catalog`.
 pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, SubjectError> {
     let (head_asset, head_path) = resolve(
@@ -250,8 +247,6 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
     let lm = head.landmarks;
     let to_world = subject_transform(&lm, sample.camera.subject_offset_m);
     let camera = sample_camera(sample)?;
-    // Hair ribbons face the camera; they are built in the head frame.
-    let eye_in_head = to_world.inverse().transform_point3(camera.position);
 
     let mut stats = AssemblyStats::default();
     let mut parts = Scene::default();
@@ -302,9 +297,12 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
     let brows = grow_eyebrows(&head.surface, &lm, sample.hair.seed ^ 0x9E37_79B9_7F4A_7C15);
     stats.hair_strands = strands.strand_count();
     stats.eyebrow_strands = brows.strand_count();
-    let albedo = hair_albedo(sample.hair.melanin, sample.hair.melanin_redness);
-    add_strands(&mut parts, &strands, eye_in_head, "hair", albedo);
-    add_strands(&mut parts, &brows, eye_in_head, "eyebrows", albedo);
+    let hair_material = parts.materials.len() as u32;
+    parts
+        .materials
+        .push(hair_fibre_material("hair", &sample.hair));
+    add_fibres(&mut parts, &strands, "hair", hair_material);
+    add_fibres(&mut parts, &brows, "eyebrows", hair_material);
 
     if let Some(g) = &sample.glasses {
         let (asset, path) = resolve(catalog, &g.id, &g.blake3, AssetKind::Glasses)?;
@@ -353,12 +351,10 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
     })
 }
 
-fn add_strands(scene: &mut Scene, strands: &Strands, eye: Vec3, name: &str, albedo: [f32; 3]) {
-    if strands.strand_count() == 0 {
-        return;
+fn add_fibres(scene: &mut Scene, strands: &Strands, name: &str, material: u32) {
+    if strands.strand_count() > 0 {
+        scene.curves.push(strands.to_curves(name, material));
     }
-    let mesh = strands.ribbon_mesh(eye, name);
-    scene.add_mesh_instance(mesh, strand_material(name, albedo, 0.35), Mat4::IDENTITY);
 }
 
 /// The body a garment was fitted to (catalog tag `fitted_to`, a head id), and its eye centre.

@@ -77,6 +77,8 @@ fn sample(style: &str, density: f64, length_m: f64, curl: f64, clumping: f64) ->
         curl,
         clumping,
         seed: 0,
+        longitudinal_roughness: 0.3,
+        azimuthal_roughness: 0.3,
     }
 }
 

@@ -1,18 +1,22 @@
 //! Minimal .glb writer so tests and tools can turn analytic scenes into files that go through
-//! the real loader: geometry, factor-only materials (textures are not written), one node per
-//! instance and the perspective cameras.
+//! the real loader: geometry, factor-only materials (textures are not written; `hair`
+//! materials carry their `extras.lightfarm`), one node per instance, one mesh and node per curve
+//! set (one indexed `LINES` primitive with `POSITION` and `_RADIUS`, which the loader chains
+//! back into the same strands) and the perspective cameras.
 
 use std::path::Path;
 
 use glam::{Mat4, Vec3};
 use serde_json::{json, Value};
 
-use super::{Material, Scene, SceneError};
+use super::load_curves::RADIUS_ATTRIBUTE;
+use super::{Curves, Material, MaterialModel, Scene, SceneError};
 
 const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 const FLOAT: u32 = 5126;
 const UNSIGNED_INT: u32 = 5125;
+const MODE_LINES: u32 = 1;
 
 /// Accumulates the single binary buffer with its views and accessors.
 #[derive(Default)]
@@ -95,7 +99,59 @@ fn material_json(m: &Material) -> Value {
     if !ext.is_empty() {
         v["extensions"] = Value::Object(ext);
     }
+    if m.model == MaterialModel::Hair {
+        // The hair preset sets the fibre parameters, so all of them are written as overrides.
+        v["extras"] = json!({"lightfarm": {
+            "model": MaterialModel::Hair.name(),
+            "melanin": m.melanin,
+            "melanin_redness": m.melanin_redness,
+            "longitudinal_roughness": m.longitudinal_roughness,
+            "azimuthal_roughness": m.azimuthal_roughness,
+            "cuticle_tilt": m.cuticle_tilt_deg,
+            "specular_IOR": m.ior,
+        }});
+    }
     v
+}
+
+/// One mesh of `curves`: a single `LINES` primitive over the points in strand order, u32
+/// indices pairing each point with the next one of its strand.
+fn curves_mesh(bin: &mut Bin, curves: &Curves, scene: &Scene) -> Result<Value, String> {
+    curves.validate()?;
+    let material = scene
+        .materials
+        .get(curves.material as usize)
+        .ok_or_else(|| format!("its material {} does not exist", curves.material))?;
+    if material.model != MaterialModel::Hair {
+        return Err(format!(
+            "its material '{}' has model \"{}\"; curves need a hair material \
+             (MaterialModel::Hair), which is what the loader accepts",
+            material.name, material.model
+        ));
+    }
+    let mut indices: Vec<u32> = Vec::with_capacity(2 * curves.segment_count());
+    for w in curves.offsets.windows(2) {
+        for i in w[0]..w[1] - 1 {
+            indices.extend([i, i + 1]);
+        }
+    }
+    let radii: Vec<[f32; 1]> = curves.radii.iter().map(|&r| [r]).collect();
+    let attributes = json!({
+        "POSITION": bin.floats(&curves.points, "VEC3", true),
+        RADIUS_ATTRIBUTE: bin.floats(&radii, "SCALAR", false),
+    });
+    let acc = json!({"componentType": UNSIGNED_INT, "count": indices.len(), "type": "SCALAR"});
+    let bytes: Vec<u8> = indices.iter().flat_map(|i| i.to_le_bytes()).collect();
+    let indices = bin.push(&bytes, ELEMENT_ARRAY_BUFFER, acc);
+    Ok(json!({
+        "name": curves.name,
+        "primitives": [{
+            "attributes": attributes,
+            "indices": indices,
+            "material": curves.material,
+            "mode": MODE_LINES,
+        }],
+    }))
 }
 
 /// Writes `scene` as a binary glTF 2.0 file.
@@ -169,6 +225,13 @@ pub fn write_glb(scene: &Scene, path: &Path) -> Result<(), SceneError> {
             )));
         }
         nodes.push(json!({"mesh": inst.mesh, "matrix": inst.transform.to_cols_array().to_vec()}));
+    }
+    // Curves are world space: a node without a transform each, so the loader bakes nothing.
+    for (ci, curves) in scene.curves.iter().enumerate() {
+        let mesh = curves_mesh(&mut bin, curves, scene)
+            .map_err(|reason| err(format!("curve set {ci} '{}': {reason}", curves.name)))?;
+        nodes.push(json!({"mesh": meshes.len()}));
+        meshes.push(mesh);
     }
     let mut cameras = Vec::new();
     for (ci, cam) in scene.cameras.iter().enumerate() {

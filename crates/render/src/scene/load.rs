@@ -1,5 +1,6 @@
 //! glTF 2.0 (.glb / .gltf) to [`Scene`]: default scene's node tree, merged triangle primitives
-//! per mesh, metallic-roughness materials with the specular/transmission/ior extensions and
+//! per mesh, line primitives with `_RADIUS` as fibres ([`super::load_curves`]),
+//! metallic-roughness materials with the specular/transmission/ior extensions and
 //! `extras.lightfarm` ([`super::material`]), images as RGBA8 and perspective cameras.
 
 use std::path::Path;
@@ -7,6 +8,7 @@ use std::path::Path;
 use glam::{Mat4, Vec3};
 
 use super::geometry::{orthogonal_up, smooth_normals, unit_or_fallback, uv_tangents};
+use super::load_curves::{is_curve_mode, read_mesh_curves, to_world};
 use super::morph::{read_primitive_targets, target_names, MorphMerge};
 use super::{Camera, Instance, Material, Mesh, Scene, SceneError, Texture};
 
@@ -39,7 +41,16 @@ pub(crate) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
     // Lazily appended so files whose primitives all have materials carry no extra entry.
     let mut default_material: Option<u32> = None;
     let mut meshes: Vec<Option<Mesh>> = Vec::new();
+    // Object-space curve sets per glTF mesh, placed per node below.
+    let mut mesh_curves = Vec::new();
     for mesh in doc.meshes() {
+        mesh_curves.push(read_mesh_curves(
+            path,
+            &mesh,
+            &mesh_name(&mesh),
+            &buffer_bytes,
+            &materials,
+        )?);
         let merged = load_mesh(
             path,
             &mesh,
@@ -101,6 +112,13 @@ pub(crate) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
                     transform: global,
                 });
             }
+            for curves in mesh_curves.get(mesh.index()).into_iter().flatten() {
+                let world = to_world(curves, global).map_err(|reason| SceneError::BadNode {
+                    path: path.to_path_buf(),
+                    reason: format!("node {}: {reason}", node.index()),
+                })?;
+                scene.curves.push(world);
+            }
         }
         if let Some(cam) = node.camera() {
             match convert_camera(&cam, global) {
@@ -117,7 +135,7 @@ pub(crate) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
             stack.push((child, global, depth + 1));
         }
     }
-    if scene.instances.is_empty() {
+    if scene.instances.is_empty() && scene.curves.is_empty() {
         return Err(SceneError::NoGeometry {
             path: path.to_path_buf(),
         });
@@ -127,6 +145,7 @@ pub(crate) fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
         meshes = scene.meshes.len(),
         instances = scene.instances.len(),
         triangles = scene.triangle_count(),
+        curve_sets = scene.curves.len(),
         "loaded glTF scene"
     );
     Ok(scene)
@@ -258,6 +277,13 @@ fn convert_material(m: gltf::Material, path: &Path) -> Result<Material, SceneErr
     Ok(material)
 }
 
+/// The mesh's name in the file, else `mesh<index>`.
+fn mesh_name(mesh: &gltf::Mesh) -> String {
+    mesh.name()
+        .map(str::to_string)
+        .unwrap_or_else(|| format!("mesh{}", mesh.index()))
+}
+
 /// Merges the triangle primitives of `mesh`; `None` when it has none.
 fn load_mesh(
     path: &Path,
@@ -266,10 +292,7 @@ fn load_mesh(
     materials: &mut Vec<Material>,
     default_material: &mut Option<u32>,
 ) -> Result<Option<Mesh>, SceneError> {
-    let name = mesh
-        .name()
-        .map(str::to_string)
-        .unwrap_or_else(|| format!("mesh{}", mesh.index()));
+    let name = mesh_name(mesh);
     let bad = |reason: String| SceneError::BadPrimitive {
         path: path.to_path_buf(),
         mesh: name.clone(),
@@ -287,6 +310,9 @@ fn load_mesh(
     };
     let mut morphs = MorphMerge::new();
     for prim in mesh.primitives() {
+        if is_curve_mode(prim.mode()) {
+            continue;
+        }
         if prim.mode() != gltf::mesh::Mode::Triangles {
             tracing::warn!(path = %path.display(), mesh = %name, mode = ?prim.mode(), "skipping a non-triangle primitive");
             continue;
@@ -401,7 +427,7 @@ fn load_mesh(
 
 /// Bounds-checks an accessor before the `gltf` reader walks it: the reader computes
 /// `stride * (count - 1)` unchecked, which panics on a zero count or overflows on a hostile one.
-fn check_accessor(a: &gltf::Accessor, buffers: &[&[u8]]) -> Result<(), String> {
+pub(super) fn check_accessor(a: &gltf::Accessor, buffers: &[&[u8]]) -> Result<(), String> {
     let idx = a.index();
     if a.sparse().is_some() {
         return Err(format!("accessor {idx} is sparse, which is not supported"));

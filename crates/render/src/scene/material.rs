@@ -20,7 +20,7 @@ use super::{Material, MaterialModel, ObjectClass, SceneError};
 
 /// The models `extras.lightfarm.model` may name (every model but `gltf`, which is what a
 /// material without `extras.lightfarm` gets).
-pub const EXTRAS_MODELS: [MaterialModel; 9] = [
+pub const EXTRAS_MODELS: [MaterialModel; 10] = [
     MaterialModel::Skin,
     MaterialModel::Eye,
     MaterialModel::Mouth,
@@ -30,10 +30,11 @@ pub const EXTRAS_MODELS: [MaterialModel; 9] = [
     MaterialModel::Metal,
     MaterialModel::Lens,
     MaterialModel::Cornea,
+    MaterialModel::Hair,
 ];
 
 /// The Standard Surface parameters `extras.lightfarm` may override, besides `model`.
-pub const OVERRIDE_KEYS: [&str; 21] = [
+pub const OVERRIDE_KEYS: [&str; 26] = [
     "base_color",
     "metalness",
     "specular",
@@ -55,10 +56,15 @@ pub const OVERRIDE_KEYS: [&str; 21] = [
     "transmission",
     "opacity",
     "thin_walled",
+    "melanin",
+    "melanin_redness",
+    "longitudinal_roughness",
+    "azimuthal_roughness",
+    "cuticle_tilt",
 ];
 
 impl MaterialModel {
-    pub const ALL: [MaterialModel; 10] = [
+    pub const ALL: [MaterialModel; 11] = [
         MaterialModel::Gltf,
         MaterialModel::Skin,
         MaterialModel::Eye,
@@ -69,6 +75,7 @@ impl MaterialModel {
         MaterialModel::Metal,
         MaterialModel::Lens,
         MaterialModel::Cornea,
+        MaterialModel::Hair,
     ];
 
     /// The model called `name` ([`MaterialModel::name`], exact, lower case), `None` for
@@ -90,6 +97,7 @@ impl MaterialModel {
             MaterialModel::Metal => "metal",
             MaterialModel::Lens => "lens",
             MaterialModel::Cornea => "cornea",
+            MaterialModel::Hair => "hair",
         }
     }
 
@@ -102,6 +110,7 @@ impl MaterialModel {
             MaterialModel::Mouth | MaterialModel::Teeth => ObjectClass::Mouth,
             MaterialModel::Cloth => ObjectClass::Garment,
             MaterialModel::Lens => ObjectClass::Lens,
+            MaterialModel::Hair => ObjectClass::Hair,
             MaterialModel::Gltf | MaterialModel::Plastic | MaterialModel::Metal => {
                 ObjectClass::Other
             }
@@ -133,6 +142,7 @@ impl Material {
     /// | `metal` | metalness 1 | colour (= F0), roughness | other |
     /// | `lens` | transmission 1, metalness 0 | IOR (1.5 unless the file has KHR_materials_ior), colour, roughness | lens |
     /// | `cornea` | transmission 1, thin_walled, IOR 1.376, specular 1, specular_color 1, metalness 0, opacity 1 (MakeHuman's BLEND 0.08 stood in for clear) | nothing else matters to a clear sheet | eyes |
+    /// | `hair` | the Chiang 2016 fibre (curves only): IOR 1.55, longitudinal and azimuthal roughness 0.3, cuticle tilt 2°, opacity 1, transmission 0 | melanin, melanin redness (absorption) | hair |
     pub fn apply_model(&mut self, model: MaterialModel) {
         self.model = model;
         if model == MaterialModel::Gltf {
@@ -224,6 +234,15 @@ impl Material {
                 self.metallic = 0.0;
                 self.opacity = 1.0;
             }
+            MaterialModel::Hair => {
+                self.ior = 1.55;
+                self.longitudinal_roughness = 0.3;
+                self.azimuthal_roughness = 0.3;
+                self.cuticle_tilt_deg = 2.0;
+                self.opacity = 1.0;
+                self.transmission = 0.0;
+                self.metallic = 0.0;
+            }
         }
     }
 }
@@ -287,8 +306,25 @@ fn kind_of(key: &str) -> Option<Kind> {
         "base_color" | "specular_color" | "subsurface_color" | "coat_color" | "sheen_color" => {
             Kind::Colour
         }
-        "metalness" | "specular" | "specular_roughness" | "subsurface" | "coat"
-        | "coat_roughness" | "sheen" | "sheen_roughness" | "transmission" | "opacity" => UNIT,
+        "metalness"
+        | "specular"
+        | "specular_roughness"
+        | "subsurface"
+        | "coat"
+        | "coat_roughness"
+        | "sheen"
+        | "sheen_roughness"
+        | "transmission"
+        | "opacity"
+        | "melanin"
+        | "melanin_redness"
+        | "longitudinal_roughness"
+        | "azimuthal_roughness" => UNIT,
+        "cuticle_tilt" => Kind::Scalar {
+            lo: -10.0,
+            hi: 10.0,
+            open_lo: false,
+        },
         "specular_IOR" | "coat_IOR" => IOR,
         "subsurface_radius" => Kind::Radius,
         "thin_walled" => Kind::Bool,
@@ -394,7 +430,9 @@ fn rgb(v: &Value, kind: Kind) -> Result<[f32; 3], String> {
 /// `sheen_roughness`, `transmission`, `opacity` in [0, 1]; `specular_IOR`, `coat_IOR` in
 /// [1, 3]; `subsurface_radius` [r, g, b], each in (0, 100] (in units of the scale);
 /// `subsurface_scale` in (0, 1] metres; `subsurface_anisotropy` in [-0.95, 0.95];
-/// `thin_walled` true or false.
+/// `thin_walled` true or false; for `hair`: `melanin`, `melanin_redness`,
+/// `longitudinal_roughness`, `azimuthal_roughness` in [0, 1], `cuticle_tilt` in [-10, 10]
+/// degrees (and `specular_IOR`).
 pub fn apply_lightfarm(
     material: &mut Material,
     lightfarm: &Value,
@@ -529,6 +567,11 @@ fn set(m: &mut Material, key: &str, value: Override) {
             "sheen_roughness" => m.sheen_roughness = x,
             "transmission" => m.transmission = x,
             "opacity" => m.opacity = x,
+            "melanin" => m.melanin = x,
+            "melanin_redness" => m.melanin_redness = x,
+            "longitudinal_roughness" => m.longitudinal_roughness = x,
+            "azimuthal_roughness" => m.azimuthal_roughness = x,
+            "cuticle_tilt" => m.cuticle_tilt_deg = x,
             _ => unreachable!("{key} is checked by kind_of"),
         },
     }

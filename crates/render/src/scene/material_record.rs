@@ -44,6 +44,26 @@ pub struct MaterialRecord {
     pub sheen_color: [f32; 3],
     pub sheen_roughness: f32,
     pub thin_walled: bool,
+    /// The fibre parameters of a `hair` material (absent for every other model).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hair: Option<HairRecord>,
+}
+
+/// A hair material's fibre: what it was given and the absorption the shader used.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct HairRecord {
+    pub melanin: f32,
+    pub melanin_redness: f32,
+    pub longitudinal_roughness: f32,
+    pub azimuthal_roughness: f32,
+    /// Degrees.
+    pub cuticle_tilt: f32,
+    /// Per unit radius, linear Rec.709 ([`crate::hair::sigma_a_from_melanin`]).
+    pub sigma_a: [f32; 3],
+    /// The σ set `sigma_a` came from.
+    pub sigma_set: &'static str,
+    /// The colour the albedo pass reports ([`crate::hair::color_of_sigma_a`]).
+    pub albedo: [f32; 3],
 }
 
 impl From<&Material> for MaterialRecord {
@@ -81,7 +101,25 @@ impl From<&Material> for MaterialRecord {
             sheen_roughness,
             specular_texture,
             thin_walled,
+            melanin,
+            melanin_redness,
+            longitudinal_roughness,
+            azimuthal_roughness,
+            cuticle_tilt_deg,
         } = m.clone();
+        let hair = (model == MaterialModel::Hair).then(|| {
+            let sigma_a = crate::hair::sigma_a_from_melanin(melanin, melanin_redness);
+            HairRecord {
+                melanin,
+                melanin_redness,
+                longitudinal_roughness,
+                azimuthal_roughness,
+                cuticle_tilt: cuticle_tilt_deg,
+                sigma_a,
+                sigma_set: crate::hair::SIGMA_SET,
+                albedo: crate::hair::color_of_sigma_a(sigma_a, azimuthal_roughness),
+            }
+        });
         MaterialRecord {
             name,
             model,
@@ -113,6 +151,7 @@ impl From<&Material> for MaterialRecord {
             sheen_color,
             sheen_roughness,
             thin_walled,
+            hair,
         }
     }
 }

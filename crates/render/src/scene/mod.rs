@@ -5,6 +5,7 @@ mod camera;
 pub mod export;
 mod geometry;
 mod load;
+mod load_curves;
 pub mod material;
 mod material_record;
 mod morph;
@@ -33,7 +34,11 @@ pub enum SceneError {
         #[source]
         source: gltf::Error,
     },
-    #[error("{} contains no triangle geometry in its scene; export the meshes as triangles", path.display())]
+    #[error(
+        "{} contains no triangle or curve geometry in its scene; export the meshes as triangles \
+         (and hair as LINES / LINE_STRIP with a _RADIUS attribute)",
+        path.display()
+    )]
     NoGeometry { path: PathBuf },
     #[error("{}: mesh '{mesh}' is unusable: {reason}; re-export the mesh", path.display())]
     BadPrimitive {
@@ -112,6 +117,85 @@ impl Mesh {
     }
 }
 
+/// Fibres: polylines with a radius per vertex, rendered as round cones with spherical caps
+/// (Cycles' "thick linear" curves) with one material, in world space. Strand `i` is
+/// `points[offsets[i]..offsets[i + 1]]`; every strand has at least two points.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Curves {
+    pub name: String,
+    pub points: Vec<[f32; 3]>,
+    /// Metres, one per point, > 0.
+    pub radii: Vec<f32>,
+    /// `strand_count + 1` entries, starting at 0 and ending at `points.len()`.
+    pub offsets: Vec<u32>,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+/// Strands × segments beyond which a curve set is refused: 16 M segments (512 MiB of GPU
+/// segments) is far above any head of hair (the built-in styles stay under 1 M).
+pub const MAX_CURVE_SEGMENTS: usize = 1 << 24;
+
+impl Curves {
+    pub fn strand_count(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    /// Segments over all strands.
+    pub fn segment_count(&self) -> usize {
+        self.offsets
+            .windows(2)
+            .map(|w| (w[1].saturating_sub(w[0]) as usize).saturating_sub(1))
+            .sum()
+    }
+
+    /// Checks the invariants the GPU packing relies on; the reason names the first offending
+    /// strand or point.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.radii.len() != self.points.len() {
+            return Err(format!(
+                "{} radii for {} points; every point needs a radius",
+                self.radii.len(),
+                self.points.len()
+            ));
+        }
+        match (self.offsets.first(), self.offsets.last()) {
+            (Some(0), Some(&last)) if last as usize == self.points.len() => {}
+            _ => {
+                return Err(format!(
+                    "strand offsets must run from 0 to the point count {}",
+                    self.points.len()
+                ))
+            }
+        }
+        for (i, w) in self.offsets.windows(2).enumerate() {
+            if w[1] < w[0] + 2 {
+                return Err(format!(
+                    "strand {i} has {} points; a strand needs at least 2",
+                    w[1].saturating_sub(w[0])
+                ));
+            }
+        }
+        for (i, (p, &r)) in self.points.iter().zip(&self.radii).enumerate() {
+            if !p.iter().all(|c| c.is_finite()) {
+                return Err(format!("point {i} is not finite ({p:?})"));
+            }
+            if !(r.is_finite() && r > 0.0) {
+                return Err(format!(
+                    "point {i} has radius {r}; radii must be > 0 metres"
+                ));
+            }
+        }
+        let segments = self.segment_count();
+        if segments > MAX_CURVE_SEGMENTS {
+            return Err(format!(
+                "{segments} segments, more than the {MAX_CURVE_SEGMENTS} a curve set may have"
+            ));
+        }
+        Ok(())
+    }
+}
+
 /// Decoded image, RGBA8 as stored in the file (no colour-space conversion).
 #[derive(Clone, Debug)]
 pub struct Texture {
@@ -181,6 +265,14 @@ pub struct Material {
     /// clear sheet, one surface that reflects and passes light straight through (an eye's
     /// cornea), instead of the boundary of a refracting solid (a lens).
     pub thin_walled: bool,
+    /// [`MaterialModel::Hair`] (fibres only): melanin and melanin redness in [0, 1] (the
+    /// absorption σa they give is [`crate::hair::sigma_a_from_melanin`]), longitudinal and
+    /// azimuthal roughness βm, βn in [0, 1], cuticle tilt α in degrees; `ior` is the fibre's.
+    pub melanin: f32,
+    pub melanin_redness: f32,
+    pub longitudinal_roughness: f32,
+    pub azimuthal_roughness: f32,
+    pub cuticle_tilt_deg: f32,
 }
 
 /// The surface models a material can name in `extras.lightfarm.model`.
@@ -208,6 +300,8 @@ pub enum MaterialModel {
     Lens,
     /// An eye's cornea: a thin-walled clear sheet (IOR 1.376) over the iris.
     Cornea,
+    /// Hair fibres (curves only): Chiang et al. 2016, absorption from melanin.
+    Hair,
 }
 
 impl MaterialModel {
@@ -296,6 +390,11 @@ impl Default for Material {
             sheen_roughness: 0.3,
             specular_texture: None,
             thin_walled: false,
+            melanin: 0.5,
+            melanin_redness: 0.2,
+            longitudinal_roughness: 0.3,
+            azimuthal_roughness: 0.3,
+            cuticle_tilt_deg: 2.0,
         }
     }
 }
@@ -310,6 +409,8 @@ pub struct Instance {
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
     pub meshes: Vec<Mesh>,
+    /// Fibre sets (hair, eyebrows, eyelashes), world space.
+    pub curves: Vec<Curves>,
     pub materials: Vec<Material>,
     pub textures: Vec<Texture>,
     pub instances: Vec<Instance>,
@@ -322,7 +423,8 @@ impl Scene {
         load::load_gltf(path)
     }
 
-    /// World-space axis-aligned bounds over all instanced vertices, `None` for an empty scene.
+    /// World-space axis-aligned bounds over all instanced vertices and curve points, `None` for
+    /// an empty scene.
     pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
@@ -338,6 +440,14 @@ impl Scene {
                     hi = hi.max(w);
                     any = true;
                 }
+            }
+        }
+        for p in self.curves.iter().flat_map(|c| &c.points) {
+            let w = Vec3::from(*p);
+            if w.is_finite() {
+                lo = lo.min(w);
+                hi = hi.max(w);
+                any = true;
             }
         }
         any.then_some((lo, hi))

@@ -86,6 +86,19 @@ pub fn write_glb_file(dir: &Path, stem: &str, materials: &[Value]) -> PathBuf {
     path
 }
 
+/// Writes `<dir>/<stem>.gltf` from `document` with `bin` as `<dir>/<stem>.bin`: the document's
+/// buffer 0 is pointed at it (its `uri` and `byteLength` are set here).
+pub fn write_gltf_document(dir: &Path, stem: &str, document: &Value, bin: &[u8]) -> PathBuf {
+    let bin_name = format!("{stem}.bin");
+    std::fs::write(dir.join(&bin_name), bin).expect("write bin");
+    let mut document = document.clone();
+    document["buffers"] = json!([{"byteLength": bin.len(), "uri": bin_name}]);
+    let path = dir.join(format!("{stem}.gltf"));
+    let text = serde_json::to_string_pretty(&document).expect("json");
+    std::fs::write(&path, text).expect("write gltf");
+    path
+}
+
 pub fn load(path: &Path) -> Scene {
     Scene::load_gltf(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }

@@ -2,7 +2,9 @@
 #![allow(dead_code)]
 
 pub mod bsdf_ref;
+pub mod fibres;
 pub mod gltf_files;
+pub mod hair_ref;
 pub mod sphere_chi2;
 
 use std::sync::{Arc, OnceLock};

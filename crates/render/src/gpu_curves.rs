@@ -1,0 +1,243 @@
+//! Fibre segments for the GPU: every segment of a [`Curves`] set is one BLAS primitive (obvhs
+//! builds over its bounding box), stored in leaf order in `tri_pos` as [`SEGMENT_VEC4S`] vec4s
+//! ([`Segment::gpu_words`]). `shaders/inc/traverse.wgsl` intersects them as round cones, mitred
+//! at the joints and capped by spheres at the strand ends.
+
+use std::time::{Duration, Instant};
+
+use glam::{Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::builder::build_cwbvh;
+use obvhs::cwbvh::CwBvh;
+use obvhs::BvhBuildParams;
+
+use crate::scene::Curves;
+use crate::RenderError;
+
+/// vec4s per segment in `tri_pos` (SEGMENT_VEC4S in shaders/inc/traverse.wgsl).
+pub const SEGMENT_VEC4S: usize = 3;
+
+/// One fibre segment in object (= world) space: the round cone from (p0, r0) to (p1, r1), cut
+/// at each end by the plane through the end point with normal `m0` / `m1` (pointing along the
+/// strand). Inside a strand that plane bisects the bend (a mitre joint), so consecutive cones
+/// meet without overlapping or leaving a gap and the strand is one closed tube; at a strand's
+/// ends (`cap0` / `cap1`) the plane is square to the axis and a sphere of the end radius closes
+/// the tube.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment {
+    pub p0: Vec3,
+    pub r0: f32,
+    pub p1: Vec3,
+    pub r1: f32,
+    pub m0: Vec3,
+    pub m1: Vec3,
+    pub cap0: bool,
+    pub cap1: bool,
+}
+
+/// Bends sharper than this (the angle between consecutive segments) are not mitred: both
+/// segments end square with a sphere there, as at a strand end.
+pub const MAX_MITRE_BEND_DEG: f32 = 120.0;
+
+impl Segment {
+    /// Bounds of the segment: the mitre cut at each end is an ellipse of semi-major axis
+    /// r / cos(half the bend) around the end point, inside the sphere of that radius.
+    pub fn aabb(&self) -> Aabb {
+        let ax = (self.p1 - self.p0).normalize_or_zero();
+        let reach = |r: f32, m: Vec3| Vec3::splat(r / m.dot(ax).abs().max(0.5));
+        let (e0, e1) = (reach(self.r0, self.m0), reach(self.r1, self.m1));
+        Aabb::new(
+            Vec3A::from((self.p0 - e0).min(self.p1 - e1)),
+            Vec3A::from((self.p0 + e0).max(self.p1 + e1)),
+        )
+    }
+
+    /// The three vec4s the shader reads: (p0, ±r0), (p1, ±r1) with a negative radius marking a
+    /// capped end, and (m0, m1 as 2 × 16-bit octahedral).
+    pub fn gpu_words(&self) -> [[f32; 4]; 3] {
+        let signed = |r: f32, cap: bool| if cap { -r } else { r };
+        [
+            [self.p0.x, self.p0.y, self.p0.z, signed(self.r0, self.cap0)],
+            [self.p1.x, self.p1.y, self.p1.z, signed(self.r1, self.cap1)],
+            [
+                self.m0.x,
+                self.m0.y,
+                self.m0.z,
+                f32::from_bits(oct_encode(self.m1)),
+            ],
+        ]
+    }
+}
+
+/// Unit vector → octahedral coordinates in [-1, 1]², packed as WGSL's pack2x16snorm does.
+pub fn oct_encode(n: Vec3) -> u32 {
+    let l1 = n.x.abs() + n.y.abs() + n.z.abs();
+    let (mut x, mut y) = (n.x / l1, n.y / l1);
+    if n.z < 0.0 {
+        let (ox, oy) = (x, y);
+        x = (1.0 - oy.abs()) * ox.signum();
+        y = (1.0 - ox.abs()) * oy.signum();
+    }
+    let q = |v: f32| ((v.clamp(-1.0, 1.0) * 32767.0).round() as i16) as u16 as u32;
+    q(x) | (q(y) << 16)
+}
+
+/// The inverse of [`oct_encode`] (WGSL's unpack2x16snorm and the octahedral unfold).
+pub fn oct_decode(w: u32) -> Vec3 {
+    let f = |b: u32| ((b as u16 as i16) as f32 / 32767.0).max(-1.0);
+    let (x, y) = (f(w & 0xffff), f(w >> 16));
+    let z = 1.0 - x.abs() - y.abs();
+    let t = (-z).max(0.0);
+    let x = x + if x >= 0.0 { -t } else { t };
+    let y = y + if y >= 0.0 { -t } else { t };
+    Vec3::new(x, y, z).normalize()
+}
+
+/// The BLAS of one curve set.
+pub struct CurveBlas {
+    /// Index into [`crate::scene::Scene::curves`].
+    pub set: u32,
+    pub bvh: CwBvh,
+    /// Segments in the set's order (strand by strand); the CPU reference intersects these.
+    pub segments: Vec<Segment>,
+    /// For each segment: (strand, index of its first point within the strand).
+    pub segment_strand: Vec<(u32, u32)>,
+    pub node_offset: u32,
+    /// First vec4 of this BLAS's segments in `tri_pos`.
+    pub seg_offset: u32,
+    /// Wall-clock time of the BVH build.
+    pub build_time: Duration,
+}
+
+/// The segments of `c`, strand by strand, with their joints; zero-length segments (repeated
+/// points) are dropped.
+pub fn segments_of(c: &Curves) -> (Vec<Segment>, Vec<(u32, u32)>) {
+    let mut segs = Vec::with_capacity(c.segment_count());
+    let mut owner = Vec::with_capacity(c.segment_count());
+    let cos_max = MAX_MITRE_BEND_DEG.to_radians().cos();
+    for (s, w) in c.offsets.windows(2).enumerate() {
+        let first = segs.len();
+        for k in w[0] as usize..(w[1] as usize).saturating_sub(1) {
+            let (p0, p1) = (Vec3::from(c.points[k]), Vec3::from(c.points[k + 1]));
+            if p0 == p1 {
+                continue;
+            }
+            let ax = (p1 - p0).normalize();
+            segs.push(Segment {
+                p0,
+                r0: c.radii[k],
+                p1,
+                r1: c.radii[k + 1],
+                m0: ax,
+                m1: ax,
+                cap0: true,
+                cap1: true,
+            });
+            owner.push((s as u32, k as u32 - w[0]));
+        }
+        for i in first + 1..segs.len() {
+            let a = (segs[i - 1].p1 - segs[i - 1].p0).normalize();
+            let b = (segs[i].p1 - segs[i].p0).normalize();
+            if a.dot(b) < cos_max {
+                continue;
+            }
+            let m = (a + b).normalize();
+            segs[i - 1].m1 = m;
+            segs[i - 1].cap1 = false;
+            segs[i].m0 = m;
+            segs[i].cap0 = false;
+        }
+    }
+    (segs, owner)
+}
+
+fn build_params() -> BvhBuildParams {
+    let mut p = BvhBuildParams::medium_build();
+    p.pre_split = false;
+    p.max_prims_per_leaf = 3;
+    p
+}
+
+/// Builds the BLAS of curve set `set` and appends its nodes and segments; `Ok(None)` for a set
+/// without segments.
+pub(crate) fn pack_curve_set(
+    set: u32,
+    c: &Curves,
+    nodes: &mut Vec<obvhs::cwbvh::node::CwBvhNode>,
+    tri_pos: &mut Vec<[f32; 4]>,
+) -> Result<Option<CurveBlas>, RenderError> {
+    c.validate()
+        .map_err(|reason| RenderError::InvalidScene(format!("curves '{}': {reason}", c.name)))?;
+    let (segments, segment_strand) = segments_of(c);
+    if segments.is_empty() {
+        return Ok(None);
+    }
+    let boxes: Vec<Aabb> = segments.iter().map(Segment::aabb).collect();
+    let start = Instant::now();
+    let bvh = build_cwbvh(&boxes, build_params(), &mut Duration::default());
+    let build_time = start.elapsed();
+    let node_offset = nodes.len() as u32;
+    nodes.extend_from_slice(&bvh.nodes);
+    let seg_offset = u32::try_from(tri_pos.len()).map_err(|_| {
+        RenderError::InvalidScene(format!("curves '{}': the scene is too large", c.name))
+    })?;
+    tri_pos.reserve(SEGMENT_VEC4S * segments.len());
+    for &prim in &bvh.primitive_indices {
+        tri_pos.extend(segments[prim as usize].gpu_words());
+    }
+    Ok(Some(CurveBlas {
+        set,
+        bvh,
+        segments,
+        segment_strand,
+        node_offset,
+        seg_offset,
+        build_time,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn octahedral_round_trip_is_within_1e4() {
+        for (i, n) in [
+            Vec3::X,
+            -Vec3::Y,
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::new(0.3, -0.5, -0.8),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let n = n.normalize();
+            let back = oct_decode(oct_encode(n));
+            assert!(back.angle_between(n) < 1e-4, "{i}: {n} -> {back}");
+        }
+    }
+
+    #[test]
+    fn joints_are_mitred_and_strand_ends_capped() {
+        let c = Curves {
+            name: "t".into(),
+            points: vec![
+                [0.0, 0.0, 0.0],
+                [0.0, -1.0, 0.0],
+                [1.0, -2.0, 0.0],
+                [1.0, -2.0, 0.0],
+                [1.0, -3.0, 0.0],
+            ],
+            radii: vec![0.1; 5],
+            offsets: vec![0, 5],
+            material: 0,
+        };
+        let (s, owner) = segments_of(&c);
+        assert_eq!(s.len(), 3, "the repeated point is dropped");
+        assert_eq!(owner, vec![(0, 0), (0, 1), (0, 3)]);
+        assert!(s[0].cap0 && !s[0].cap1 && !s[1].cap0 && !s[1].cap1 && !s[2].cap0 && s[2].cap1);
+        let bisector = (Vec3::NEG_Y + Vec3::new(1.0, -1.0, 0.0).normalize()).normalize();
+        assert!(s[0].m1.abs_diff_eq(bisector, 1e-6) && s[1].m0 == s[0].m1);
+    }
+}
