@@ -37,7 +37,11 @@ fn hair_setup(s: Surface) -> Hair {
     let bn = clamp(s.hair.y, 1e-3, 1.0);
     let v0 = sq(0.726 * bm + 0.812 * bm * bm + 3.7 * pow(bm, 20.0));
     let sn = SQRT_PI_OVER_8 * (0.265 * bn + 1.194 * bn * bn + 5.372 * pow(bn, 22.0));
-    let a = s.hair.z;
+    // The fibre's x runs from root to tip and the cuticle scales' free edges point tipward, so
+    // R (its peak at -θo - 2α) shifts toward the root and TRT toward the tip, as Marschner et
+    // al. 2003 measured: pbrt's formulas below take the tilt as -α (Cycles negates it too;
+    // bench/cycles_hair.py found the opposite sign here).
+    let a = -s.hair.z;
     let s0 = sin(a);
     let c0 = sqrt(max(0.0, 1.0 - s0 * s0));
     let s1 = 2.0 * c0 * s0;

@@ -276,8 +276,14 @@ fn rays_leaving_a_fibre_do_not_hit_it_again() {
         let hit = *o + *d * f64::from(g.t);
         let ax = (p1 - p0).normalize();
         let len = (p1 - p0).length();
-        // The shader's spawn point (shade_fibre): the fibre's axis at the hit.
-        let spawn = p0 + ax * (hit - p0).dot(ax).clamp(0.0, len);
+        // The shader's spawn point (shade_fibre): just inside the hit, FIBRE_SPAWN_DEPTH = 5%
+        // of the radius below the surface.
+        let z = (hit - p0).dot(ax).clamp(0.0, len);
+        let c = p0 + ax * z;
+        let r = f64::from(s.r0) + (f64::from(s.r1) - f64::from(s.r0)) * z / len;
+        let mut radial = hit - c;
+        radial -= ax * radial.dot(ax);
+        let spawn = c + radial.normalize() * r * 0.95;
         // Any direction: reflections leave outward, TT and TRT through the fibre.
         second.push((spawn, rng.dir().as_dvec3(), 0.0));
         own.push(seg);

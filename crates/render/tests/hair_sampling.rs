@@ -322,3 +322,33 @@ fn smooth_black_fibre_reflects_like_a_mirror_cylinder() {
         );
     }
 }
+
+#[test]
+fn tilted_scales_shift_the_primary_highlight_toward_the_root() {
+    // x runs from root to tip. A smooth black fibre reflects only R, whose peak sits at
+    // θi = -θo - 2α: toward the root (-x) for a positive tilt, as on real hair (Marschner 2003)
+    // and in Cycles.
+    let p = probe();
+    let (theta_o, tilt) = (20.0f32, 5.0f32);
+    for (t, want) in [
+        (tilt, -theta_o - 2.0 * tilt),
+        (-tilt, -theta_o + 2.0 * tilt),
+        (0.0, -theta_o),
+    ] {
+        let f = fibre(0.02, 0.3, t, [40.0; 3], 0.3);
+        let samples = p
+            .fibre_samples(&f, wo_at(theta_o, 30.0), 4000, 17)
+            .expect("sample");
+        let mut theta: Vec<f32> = samples
+            .iter()
+            .filter(|s| s.valid)
+            .map(|s| s.wi[0].clamp(-1.0, 1.0).asin().to_degrees())
+            .collect();
+        theta.sort_by(f32::total_cmp);
+        let median = theta[theta.len() / 2];
+        assert!(
+            (median - want).abs() < 1.0,
+            "tilt {t}°: R peaks at θi {median}°, not {want}°"
+        );
+    }
+}

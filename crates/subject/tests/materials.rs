@@ -219,6 +219,15 @@ fn assembled_parts_get_models_and_classes() {
         let glasses_file = file_materials(&glasses.id);
         let headset_file = file_materials(&sample.headset.as_ref().expect("headset").id);
         let garment = sample.garment.as_ref().expect("garment");
+        let fibres: Vec<&str> = a.scene.curves.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(fibres, ["hair", "eyebrows"], "sample {}", index - 1);
+        for c in &a.scene.curves {
+            assert_eq!(
+                a.scene.materials[c.material as usize].name, "hair",
+                "{}",
+                c.name
+            );
+        }
         for m in &a.scene.materials {
             classes_seen.insert(m.class.name());
             let what = format!("sample {} ({}): '{}'", index - 1, glasses.id, m.name);
@@ -226,10 +235,15 @@ fn assembled_parts_get_models_and_classes() {
                 assert_eq!((m.model, m.class), (model, class), "{what}");
                 continue;
             }
-            if m.name == "hair" || m.name == "eyebrows" {
+            if m.name == "hair" {
+                // Hair and eyebrows are fibres sharing the sample's Chiang material.
                 assert_eq!(
                     (m.model, m.class),
-                    (MaterialModel::Gltf, ObjectClass::Hair),
+                    (MaterialModel::Hair, ObjectClass::Hair),
+                    "{what}"
+                );
+                assert!(
+                    (f64::from(m.melanin) - sample.hair.melanin).abs() < 1e-6,
                     "{what}"
                 );
                 continue;

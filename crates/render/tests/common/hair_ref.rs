@@ -196,16 +196,19 @@ impl RefFibre {
             a[2][c] = a[1][c] * t[c] * f;
             a[3][c] = a[2][c] * f * t[c] / (1.0 - t[c] * f);
         }
-        // Cuticle scales tilted by α: R is shifted by -2α, TT by α, TRT by 4α. Rotating θo by
-        // the angle ψ gives sin(θo + ψ), cos(θo + ψ).
+        // Cuticle scales tilted by α: R is shifted by -2α, TT by α, TRT by 4α, toward the root
+        // for R: x runs root to tip and the scales' free edges point tipward (Marschner 2003;
+        // Cycles negates pbrt's α for the same reason), so the tilt enters as -α here.
+        // Rotating θo by the angle ψ gives sin(θo + ψ), cos(θo + ψ).
+        let alpha = -self.alpha;
         let rot = |psi: f64| {
             let (sp, cp) = psi.sin_cos();
             (sin_o * cp + cos_o * sp, (cos_o * cp - sin_o * sp).abs())
         };
         let theta_o = [
-            rot(-2.0 * self.alpha),
-            rot(self.alpha),
-            rot(4.0 * self.alpha),
+            rot(-2.0 * alpha),
+            rot(alpha),
+            rot(4.0 * alpha),
             (sin_o, cos_o),
         ];
         let phi_centre = std::array::from_fn(|p| {
