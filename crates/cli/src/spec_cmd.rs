@@ -15,9 +15,10 @@ pub enum SpecCommand {
     Expand(ExpandArgs),
     /// Check a dataset spec against the asset catalog and report what it selects.
     Check(CheckArgs),
-    /// Assemble sample INDEX and write its scene as one .glb: the head, hair and eyebrows as
-    /// fibres (LINES with `_RADIUS`, the hair material in extras.lightfarm), garment, glasses,
-    /// headset and the sample's camera, for inspection in other tools or `lightfarm render`.
+    /// Assemble sample INDEX and write its scene as one .glb: the head, hair, eyebrows and
+    /// eyelashes as fibres (LINES with `_RADIUS`, the hair material in extras.lightfarm),
+    /// garment, glasses, headset and the sample's camera, for inspection in other tools or
+    /// `lightfarm render`.
     Glb(GlbArgs),
 }
 

@@ -11,7 +11,7 @@ use lightfarm_scene::expand::SampleSpec;
 
 use crate::garment::{Body, CoverMap, GarmentFit};
 use crate::glasses::{glasses_materials, place_glasses};
-use crate::hair::{grow_eyebrows, grow_hair, hair_fibre_material, Strands};
+use crate::hair::{grow_eyebrows, grow_eyelashes, grow_hair, hair_fibre_material, Strands};
 use crate::head::Head;
 use crate::headset::{fit_headset, headset_materials};
 use crate::landmarks::Landmarks;
@@ -43,6 +43,7 @@ pub struct Assembled {
 pub struct AssemblyStats {
     pub hair_strands: usize,
     pub eyebrow_strands: usize,
+    pub eyelash_strands: usize,
     pub triangles: usize,
     /// Skin triangles removed because the garment covers them.
     pub hidden_skin_triangles: usize,
@@ -235,6 +236,28 @@ fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> usize 
     removed
 }
 
+/// Drops every triangle whose material is named `name` (case-insensitive).
+fn remove_material_triangles(scene: &mut Scene, name: &str) {
+    let doomed: Vec<bool> = scene
+        .materials
+        .iter()
+        .map(|m| m.name.eq_ignore_ascii_case(name))
+        .collect();
+    for mesh in scene.meshes.iter_mut() {
+        let mut indices = Vec::with_capacity(mesh.indices.len());
+        let mut materials = Vec::with_capacity(mesh.triangle_materials.len());
+        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+            let material = mesh.triangle_materials.get(t).copied().unwrap_or(0);
+            if !doomed.get(material as usize).copied().unwrap_or(false) {
+                indices.extend_from_slice(tri);
+                materials.push(material);
+            }
+        }
+        mesh.indices = indices;
+        mesh.triangle_materials = materials;
+    }
+}
+
 /// Builds sample `sample`'s scene from the assets of `catalog`.
 pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, SubjectError> {
     let (head_asset, head_path) = resolve(
@@ -297,12 +320,23 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
     let brows = grow_eyebrows(&head.surface, &lm, sample.hair.seed ^ 0x9E37_79B9_7F4A_7C15);
     stats.hair_strands = strands.strand_count();
     stats.eyebrow_strands = brows.strand_count();
+    let lashes = grow_eyelashes(
+        &head.surface,
+        &head.eyelids,
+        sample.hair.seed ^ 0x2545_F491_4F6C_DD1D,
+    );
+    stats.eyelash_strands = lashes.strand_count();
+    if lashes.strand_count() > 0 {
+        // The fibres replace a head's own eyelash cards (the ICT heads' triangle strips).
+        remove_material_triangles(&mut head.scene, "eyelashes");
+    }
     let hair_material = parts.materials.len() as u32;
     parts
         .materials
         .push(hair_fibre_material("hair", &sample.hair));
     add_fibres(&mut parts, &strands, "hair", hair_material);
     add_fibres(&mut parts, &brows, "eyebrows", hair_material);
+    add_fibres(&mut parts, &lashes, "eyelashes", hair_material);
 
     if let Some(g) = &sample.glasses {
         let (asset, path) = resolve(catalog, &g.id, &g.blake3, AssetKind::Glasses)?;

@@ -7,6 +7,7 @@ use glam::{Mat4, Vec3};
 use lightfarm_render::scene::{MaterialModel, ObjectClass, Scene};
 use lightfarm_scene::catalog::Asset;
 
+use crate::eyelids::{find_lids, EyeLids, LidPoints};
 use crate::landmarks::{HeadSurface, Landmarks};
 use crate::SubjectError;
 
@@ -61,6 +62,9 @@ pub struct Head {
     pub scene: Scene,
     pub surface: HeadSurface,
     pub landmarks: Landmarks,
+    /// Lid margins of the eyes whose margins were found ([`crate::eyelids`]); empty for heads
+    /// without eyeball meshes (the scan).
+    pub eyelids: Vec<EyeLids>,
 }
 
 fn asset_error(asset: &Asset, reason: impl Into<String>) -> SubjectError {
@@ -94,6 +98,18 @@ impl Head {
         if scene.instances.is_empty() {
             return Err(asset_error(asset, "the file has no mesh instances"));
         }
+        if let Some(frame) = &asset.frame {
+            let to_canonical =
+                Mat4::from_translation(Vec3::from_array(frame.translate.map(|v| v as f32)))
+                    * Mat4::from_scale(Vec3::splat(frame.scale as f32));
+            for inst in scene.instances.iter_mut() {
+                inst.transform = to_canonical * inst.transform;
+            }
+        }
+        // Lid margins are found with the eyes open (the neutral pose) and then follow the
+        // expression's morphs.
+        let neutral = skin_surface(&scene);
+        let lids = find_head_lids(&scene, &neutral);
         if !expression.is_empty() {
             let available: usize = scene.meshes.iter().map(|m| m.morph_targets.len()).sum();
             if available == 0 {
@@ -114,14 +130,6 @@ impl Head {
                 }
             }
         }
-        if let Some(frame) = &asset.frame {
-            let to_canonical =
-                Mat4::from_translation(Vec3::from_array(frame.translate.map(|v| v as f32)))
-                    * Mat4::from_scale(Vec3::splat(frame.scale as f32));
-            for inst in scene.instances.iter_mut() {
-                inst.transform = to_canonical * inst.transform;
-            }
-        }
         let surface = skin_surface(&scene);
         if surface.triangles.is_empty() {
             return Err(asset_error(
@@ -134,13 +142,73 @@ impl Head {
             None => detect_landmarks(&scene, &surface).map_err(|r| asset_error(asset, r))?,
         };
         crate::cornea::clear_corneas(&mut scene);
+        let eyelids = match lids {
+            Ok(lids) => lids.iter().map(|l| l.place(&surface)).collect(),
+            Err(reason) => {
+                tracing::debug!(head = %asset.id, "no eyelid margins: {reason}");
+                Vec::new()
+            }
+        };
         Ok(Head {
             id: asset.id.clone(),
             scene,
             surface,
             landmarks,
+            eyelids,
         })
     }
+}
+
+/// Triangles of every eye material ([`EYE_NAMES`]), canonical frame.
+fn eye_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
+    let mut out = Vec::new();
+    for inst in &scene.instances {
+        let Some(mesh) = scene.meshes.get(inst.mesh as usize) else {
+            continue;
+        };
+        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+            let material = mesh.triangle_materials.get(t).copied().unwrap_or(u32::MAX);
+            if !EYE_NAMES
+                .iter()
+                .any(|n| material_matches(scene, material, n))
+            {
+                continue;
+            }
+            let p = |v: u32| {
+                mesh.positions
+                    .get(v as usize)
+                    .map(|p| inst.transform.transform_point3(Vec3::from(*p)))
+            };
+            if let (Some(a), Some(b), Some(c)) = (p(tri[0]), p(tri[1]), p(tri[2])) {
+                out.push([a, b, c]);
+            }
+        }
+    }
+    out
+}
+
+/// Both eyes' lid margins on the neutral `skin`: each eyeball's centre is the middle of its
+/// eye triangles' bounding box (the triangles on its side of x = 0).
+fn find_head_lids(scene: &Scene, skin: &HeadSurface) -> Result<Vec<LidPoints>, String> {
+    let eyes = eye_triangles(scene);
+    [1.0f32, -1.0]
+        .into_iter()
+        .map(|side| {
+            let mine: Vec<[Vec3; 3]> = eyes
+                .iter()
+                .filter(|t| t.iter().all(|p| p.x * side > 0.0))
+                .copied()
+                .collect();
+            let (lo, hi) = mine.iter().flatten().fold(
+                (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+            );
+            if mine.is_empty() {
+                return Err(format!("no eye triangles at x * {side} > 0"));
+            }
+            find_lids(skin, &mine, (lo + hi) * 0.5, side)
+        })
+        .collect()
 }
 
 /// World-space (canonical) skin triangles of every instance, vertices shared per mesh.

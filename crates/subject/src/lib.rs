@@ -12,6 +12,7 @@
 
 pub mod assemble;
 pub mod cornea;
+pub mod eyelids;
 pub mod garment;
 pub mod glasses;
 pub mod hair;

@@ -69,7 +69,8 @@
 //! camera-facing ribbons in `ribbons.rs`) is the output;
 //! [`grow_hair`] (`growth.rs`) grows a style from `styles.rs` on the scalp of `scalp.rs`, with
 //! the bob cut in `bob.rs` and the ponytail's tie in `ponytail.rs`, and shapes the strands with
-//! `clump.rs` and `curl.rs`; [`grow_eyebrows`] is in `eyebrows.rs` and [`hair_albedo`] in
+//! `clump.rs` and `curl.rs`; [`grow_eyebrows`] is in `eyebrows.rs`, [`grow_eyelashes`] (on
+//! the lid margins of [`crate::eyelids`]) in `eyelashes.rs` and [`hair_albedo`] in
 //! `albedo.rs`. `polyline.rs`, `rng.rs` and `grid.rs` are the shared helpers.
 //!
 //! [`Landmarks`]: crate::Landmarks
@@ -81,6 +82,7 @@ mod bob;
 mod clump;
 mod curl;
 mod eyebrows;
+mod eyelashes;
 mod fibres;
 mod grid;
 mod growth;
@@ -94,6 +96,7 @@ mod styles;
 
 pub use albedo::hair_albedo;
 pub use eyebrows::grow_eyebrows;
+pub use eyelashes::grow_eyelashes;
 pub use fibres::hair_fibre_material;
 pub use growth::grow_hair;
 pub use strands::Strands;
@@ -129,3 +132,4 @@ const STREAM_STRAND: u64 = 2;
 const STREAM_HEAD: u64 = 3;
 const STREAM_BROW_ROOTS: u64 = 4;
 const STREAM_BROW_STRAND: u64 = 5;
+const STREAM_LASH: u64 = 6;

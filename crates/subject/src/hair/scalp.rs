@@ -363,4 +363,23 @@ impl LocalSkin {
         }
         best.map(|(_, c, n)| (c, n))
     }
+
+    /// Whether the segment a→b crosses one of these triangles (Möller–Trumbore).
+    pub(super) fn crossed_by(&self, a: Vec3, b: Vec3) -> bool {
+        let d = b - a;
+        self.triangles.iter().any(|&[p0, p1, p2]| {
+            let (e1, e2) = (p1 - p0, p2 - p0);
+            let h = d.cross(e2);
+            let det = e1.dot(h);
+            if det.abs() < 1e-14 {
+                return false;
+            }
+            let s = a - p0;
+            let u = s.dot(h) / det;
+            let q = s.cross(e1);
+            let v = d.dot(q) / det;
+            let t = e2.dot(q) / det;
+            u >= 0.0 && v >= 0.0 && u + v <= 1.0 && (0.0..=1.0).contains(&t)
+        })
+    }
 }
