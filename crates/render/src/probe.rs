@@ -81,6 +81,22 @@ pub struct BsdfProbeSample {
     pub subsurface: bool,
 }
 
+impl BsdfProbeSample {
+    /// Decodes the two vec4s a sampling probe mode writes: (wi, pdf), (weight, flags) with
+    /// flag bits 1 valid, 2 delta, 4 subsurface (the fibre mode writes only the valid bit).
+    pub(crate) fn decode(c: &[[f32; 4]]) -> BsdfProbeSample {
+        let flags = c[1][3] as u32;
+        BsdfProbeSample {
+            wi: [c[0][0], c[0][1], c[0][2]],
+            pdf: c[0][3],
+            weight: [c[1][0], c[1][1], c[1][2]],
+            valid: flags & 1 != 0,
+            delta: flags & 2 != 0,
+            subsurface: flags & 4 != 0,
+        }
+    }
+}
+
 /// (single-scattering albedo α, the forward fit's slab reflectance of α) per channel.
 pub type AlbedoPair = ([f32; 3], [f32; 3]);
 
@@ -233,17 +249,7 @@ impl Probe {
                 seed,
             },
         )?;
-        Ok(out
-            .chunks_exact(2)
-            .map(|c| BsdfProbeSample {
-                wi: [c[0][0], c[0][1], c[0][2]],
-                pdf: c[0][3],
-                weight: [c[1][0], c[1][1], c[1][2]],
-                valid: (c[1][3] as u32) & 1 != 0,
-                delta: (c[1][3] as u32) & 2 != 0,
-                subsurface: (c[1][3] as u32) & 4 != 0,
-            })
-            .collect())
+        Ok(out.chunks_exact(2).map(BsdfProbeSample::decode).collect())
     }
 
     /// (f·cos, pdf) of the BSDF for each `wi`.

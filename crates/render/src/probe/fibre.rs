@@ -53,17 +53,7 @@ impl Probe {
         seed: u32,
     ) -> Result<Vec<BsdfProbeSample>, RenderError> {
         let out = self.simple(7, f.input(wo), n, 2 * n, seed)?;
-        Ok(out
-            .chunks_exact(2)
-            .map(|c| BsdfProbeSample {
-                wi: [c[0][0], c[0][1], c[0][2]],
-                pdf: c[0][3],
-                weight: [c[1][0], c[1][1], c[1][2]],
-                valid: c[1][3] > 0.5,
-                delta: false,
-                subsurface: false,
-            })
-            .collect())
+        Ok(out.chunks_exact(2).map(BsdfProbeSample::decode).collect())
     }
 
     /// (f·cos, pdf) of the fibre for each `wi`.
