@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use glam::{Mat4, Quat, Vec3};
 use lightfarm_render::passes::Pass;
-use lightfarm_render::scene::{Camera, MaterialModel, ObjectClass, Scene};
+use lightfarm_render::scene::{Camera, MaterialModel, Mesh, ObjectClass, Scene};
 use lightfarm_scene::catalog::{Asset, AssetKind, Catalog};
 use lightfarm_scene::expand::SampleSpec;
 
@@ -214,26 +214,35 @@ fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> usize 
             .iter()
             .map(|p| p.y < collar_y - 0.005 && cover.covers(*p, 0.03))
             .collect();
-        let mut indices = Vec::with_capacity(mesh.indices.len());
-        let mut materials = Vec::with_capacity(mesh.triangle_materials.len());
-        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
-            let material = mesh.triangle_materials.get(t).copied().unwrap_or(0);
+        removed += retain_triangles(mesh, |material, tri| {
             let is_skin = skin.get(material as usize).copied().unwrap_or(false);
-            let hidden = is_skin
+            !(is_skin
                 && tri
                     .iter()
-                    .all(|&v| covered.get(v as usize).copied().unwrap_or(false));
-            if hidden {
-                removed += 1;
-            } else {
-                indices.extend_from_slice(tri);
-                materials.push(material);
-            }
-        }
-        mesh.indices = indices;
-        mesh.triangle_materials = materials;
+                    .all(|&v| covered.get(v as usize).copied().unwrap_or(false)))
+        });
     }
     removed
+}
+
+/// Keeps the triangles of `mesh` for which `keep(material, indices)` holds (a triangle without
+/// a material entry counts as material 0); returns how many were dropped.
+fn retain_triangles(mesh: &mut Mesh, mut keep: impl FnMut(u32, &[u32]) -> bool) -> usize {
+    let mut indices = Vec::with_capacity(mesh.indices.len());
+    let mut materials = Vec::with_capacity(mesh.triangle_materials.len());
+    let mut dropped = 0;
+    for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+        let material = mesh.triangle_materials.get(t).copied().unwrap_or(0);
+        if keep(material, tri) {
+            indices.extend_from_slice(tri);
+            materials.push(material);
+        } else {
+            dropped += 1;
+        }
+    }
+    mesh.indices = indices;
+    mesh.triangle_materials = materials;
+    dropped
 }
 
 /// Drops every triangle whose material is named `name` (case-insensitive).
@@ -244,17 +253,9 @@ fn remove_material_triangles(scene: &mut Scene, name: &str) {
         .map(|m| m.name.eq_ignore_ascii_case(name))
         .collect();
     for mesh in scene.meshes.iter_mut() {
-        let mut indices = Vec::with_capacity(mesh.indices.len());
-        let mut materials = Vec::with_capacity(mesh.triangle_materials.len());
-        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
-            let material = mesh.triangle_materials.get(t).copied().unwrap_or(0);
-            if !doomed.get(material as usize).copied().unwrap_or(false) {
-                indices.extend_from_slice(tri);
-                materials.push(material);
-            }
-        }
-        mesh.indices = indices;
-        mesh.triangle_materials = materials;
+        retain_triangles(mesh, |material, _| {
+            !doomed.get(material as usize).copied().unwrap_or(false)
+        });
     }
 }
 

@@ -130,7 +130,12 @@ impl Head {
                 }
             }
         }
-        let surface = skin_surface(&scene);
+        // Without an expression the posed skin is the neutral one.
+        let surface = if expression.is_empty() {
+            neutral
+        } else {
+            skin_surface(&scene)
+        };
         if surface.triangles.is_empty() {
             return Err(asset_error(
                 asset,
@@ -199,16 +204,21 @@ fn find_head_lids(scene: &Scene, skin: &HeadSurface) -> Result<Vec<LidPoints>, S
                 .filter(|t| t.iter().all(|p| p.x * side > 0.0))
                 .copied()
                 .collect();
-            let (lo, hi) = mine.iter().flatten().fold(
-                (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-                |(lo, hi), p| (lo.min(*p), hi.max(*p)),
-            );
-            if mine.is_empty() {
+            let Some(centre) = bbox_centre(mine.iter().flatten()) else {
                 return Err(format!("no eye triangles at x * {side} > 0"));
-            }
-            find_lids(skin, &mine, (lo + hi) * 0.5, side)
+            };
+            find_lids(skin, &mine, centre, side)
         })
         .collect()
+}
+
+/// Middle of the bounding box of `points`; `None` when there are none.
+fn bbox_centre<'a>(points: impl Iterator<Item = &'a Vec3>) -> Option<Vec3> {
+    let (lo, hi) = points.fold(None, |acc: Option<(Vec3, Vec3)>, p| match acc {
+        None => Some((*p, *p)),
+        Some((lo, hi)) => Some((lo.min(*p), hi.max(*p))),
+    })?;
+    Some((lo + hi) * 0.5)
 }
 
 /// World-space (canonical) skin triangles of every instance, vertices shared per mesh.
@@ -296,16 +306,7 @@ pub fn detect_landmarks(scene: &Scene, skin: &HeadSurface) -> Result<Landmarks, 
             break;
         }
     }
-    let centre = |side: f32| -> Option<Vec3> {
-        let (lo, hi) = eyes.iter().filter(|p| p.x * side > 0.0).fold(
-            None,
-            |acc: Option<(Vec3, Vec3)>, p| match acc {
-                None => Some((*p, *p)),
-                Some((lo, hi)) => Some((lo.min(*p), hi.max(*p))),
-            },
-        )?;
-        Some((lo + hi) * 0.5)
-    };
+    let centre = |side: f32| bbox_centre(eyes.iter().filter(|p| p.x * side > 0.0));
     let (Some(eye_left), Some(eye_right)) = (centre(1.0), centre(-1.0)) else {
         return Err(
             "no eye meshes on both sides (materials named sclera/eyes/eyeball/cornea/iris): \
