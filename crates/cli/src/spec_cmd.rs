@@ -118,8 +118,25 @@ pub fn spec(cmd: SpecCommand) -> Result<()> {
         SpecCommand::Check(a) => {
             let catalog = load_catalog(&a.catalog)?;
             let spec = DatasetSpec::load(&a.spec)?.validate(&catalog)?;
-            let train = spec.train_identities();
-            let test = spec.test_identities();
+            let mut train: Vec<String> = spec
+                .train_identities()
+                .iter()
+                .map(|s| s.to_string())
+                .collect();
+            let mut test: Vec<String> = spec
+                .test_identities()
+                .iter()
+                .map(|s| s.to_string())
+                .collect();
+            if let Some(p) = &spec.synthetic {
+                let held = (0..p.count.min(100_000)).filter(|&k| p.held_out(k)).count();
+                let scanned = p.count.min(100_000);
+                train.push(format!("{} synthetic people (ids 0..{})", p.count, p.count));
+                test.push(format!(
+                    "synthetic ids held out: {held} of the first {scanned} (names {:?})",
+                    p.held_out_names
+                ));
+            }
             if train.is_empty() {
                 bail!("{}: no training identities left", a.spec.display());
             }

@@ -27,16 +27,19 @@ pub enum AssetKind {
     Garment,
     Glasses,
     Headset,
+    /// Data of a parametric model that generates assets (the MakeHuman head model).
+    Model,
 }
 
 impl AssetKind {
     /// Every kind, in the order error messages list them.
-    pub const ALL: [AssetKind; 5] = [
+    pub const ALL: [AssetKind; 6] = [
         AssetKind::Head,
         AssetKind::Hdri,
         AssetKind::Garment,
         AssetKind::Glasses,
         AssetKind::Headset,
+        AssetKind::Model,
     ];
 
     /// The name used in `catalog.toml`.
@@ -47,6 +50,7 @@ impl AssetKind {
             AssetKind::Garment => "garment",
             AssetKind::Glasses => "glasses",
             AssetKind::Headset => "headset",
+            AssetKind::Model => "model",
         }
     }
 }
@@ -301,13 +305,21 @@ impl Catalog {
                     SceneError::Invalid {
                         path: self.catalog_path(),
                         key: format!("asset[{i}].path"),
-                        reason: format!(
-                            "file {} of asset `{}` does not exist: restore it or fix the path \
-                             (relative to {})",
-                            file.display(),
-                            asset.id,
-                            self.root.display()
-                        ),
+                        reason: match asset.tags.get("install") {
+                            // Model data too large for the repository says how to get it.
+                            Some(fix) => format!(
+                                "file {} of asset `{}` is not installed: run {fix}",
+                                file.display(),
+                                asset.id
+                            ),
+                            None => format!(
+                                "file {} of asset `{}` does not exist: restore it or fix the \
+                                 path (relative to {})",
+                                file.display(),
+                                asset.id,
+                                self.root.display()
+                            ),
+                        },
                     }
                 } else {
                     SceneError::Io {

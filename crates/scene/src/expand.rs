@@ -39,6 +39,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::catalog::{Asset, Catalog};
 use crate::error::SceneError;
+use crate::identity::{identity_name, sample_identity, SyntheticIdentity, SYNTHETIC};
 use crate::rng::SampleRng;
 use crate::spec::{AssetRef, ResolvedSpec};
 
@@ -249,12 +250,27 @@ impl From<&AssetRef> for AssetSample {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HeadSample {
+    /// A catalog head's id, or "synthetic" for a generated person.
     pub id: String,
+    /// The head file's hash; empty for a generated person, whose model files are pinned in
+    /// `synthetic.models` instead.
     pub blake3: String,
     pub expression: Expression,
+    /// The generated person (absent for catalog heads, and in samples made before they
+    /// existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub synthetic: Option<SyntheticHead>,
 }
 
+/// A generated head: the person's parameters and the model files, by hash, that build it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SyntheticHead {
+    pub identity: SyntheticIdentity,
+    pub models: Vec<AssetSample>,
+}
+
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Expression {
     /// `neutral`, `smile`, `jaw_open`, `blink`, `surprise`, `frown` or `random`.
@@ -373,34 +389,66 @@ pub fn expand(spec: &ResolvedSpec, index: u64) -> Result<SampleSpec, SceneError>
     let stream = |s: u64| SampleRng::new(spec.seed, index, s);
 
     // Identity, then head; the split follows from the identity.
+    // Catalog identities come first, then synthetic ids 0..count; without synthetic people
+    // the draw is the one datasets made before them used.
     let mut rng = stream(STREAM_IDENTITY);
-    let identity = spec
-        .identities
-        .get(rng.pick(spec.identities.len()))
-        .ok_or_else(|| {
-            invalid(
-                "assets.heads",
-                "selects no heads; select at least one".into(),
+    let synthetic_count = spec.synthetic.as_ref().map_or(0, |p| p.count);
+    let total = spec.identities.len() as u64 + synthetic_count;
+    if total == 0 {
+        return Err(invalid(
+            "assets.heads",
+            "selects no heads; select at least one".into(),
+        ));
+    }
+    let pick = rng.below(total);
+    let (identity_name, held_out, head, has_morphs) = match spec.identities.get(pick as usize) {
+        Some(identity) => {
+            let head = identity
+                .heads
+                .get(rng.pick(identity.heads.len()))
+                .ok_or_else(|| {
+                    invalid(
+                        "assets.heads",
+                        format!("identity {:?} has no heads", identity.name),
+                    )
+                })?;
+            let sample = HeadSample {
+                id: head.id.clone(),
+                blake3: head.blake3.clone(),
+                expression: Expression::default(),
+                synthetic: None,
+            };
+            (
+                identity.name.clone(),
+                identity.held_out,
+                sample,
+                head.has_morphs,
             )
-        })?;
-    let head = identity
-        .heads
-        .get(rng.pick(identity.heads.len()))
-        .ok_or_else(|| {
-            invalid(
-                "assets.heads",
-                format!("identity {:?} has no heads", identity.name),
-            )
-        })?;
-    let split = if identity.held_out {
-        Split::Test
-    } else {
-        Split::Train
+        }
+        None => {
+            let people = spec
+                .synthetic
+                .as_ref()
+                .ok_or_else(|| invalid("assets.heads", "selects no synthetic people".into()))?;
+            let k = pick - spec.identities.len() as u64;
+            let sample = HeadSample {
+                id: SYNTHETIC.to_owned(),
+                blake3: String::new(),
+                expression: Expression::default(),
+                synthetic: Some(SyntheticHead {
+                    identity: sample_identity(&people.spec, spec.seed, k),
+                    models: people.models.iter().map(AssetSample::from).collect(),
+                }),
+            };
+            // Generated heads carry the 52 ARKit Face Units.
+            (identity_name(k), people.held_out(k), sample, true)
+        }
     };
+    let split = if held_out { Split::Test } else { Split::Train };
 
     // A scan or a PCA head without blendshapes cannot show an expression; asking it for one
     // would make the JSON claim a smile the image does not have.
-    let expression_probability = if head.has_morphs {
+    let expression_probability = if has_morphs {
         spec.subject.expression_probability
     } else {
         0.0
@@ -479,12 +527,8 @@ pub fn expand(spec: &ResolvedSpec, index: u64) -> Result<SampleSpec, SceneError>
     Ok(SampleSpec {
         index,
         split,
-        identity: identity.name.clone(),
-        head: HeadSample {
-            id: head.id.clone(),
-            blake3: head.blake3.clone(),
-            expression,
-        },
+        identity: identity_name,
+        head: HeadSample { expression, ..head },
         hair,
         garment,
         glasses,
@@ -625,7 +669,10 @@ pub fn required_assets<'a>(
                  against the catalog it will be rendered with"
             .to_owned(),
     };
-    let mut ids: Vec<&str> = vec![sample.head.id.as_str()];
+    let mut ids: Vec<&str> = match &sample.head.synthetic {
+        Some(s) => s.models.iter().map(|m| m.id.as_str()).collect(),
+        None => vec![sample.head.id.as_str()],
+    };
     ids.extend(sample.garment.iter().map(|g| g.id.as_str()));
     ids.extend(sample.glasses.iter().map(|g| g.id.as_str()));
     ids.extend(sample.headset.iter().map(|g| g.id.as_str()));

@@ -8,6 +8,7 @@
 pub mod catalog;
 pub mod error;
 pub mod expand;
+pub mod identity;
 pub mod rng;
 pub mod spec;
 

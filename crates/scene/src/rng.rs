@@ -99,6 +99,18 @@ impl SampleRng {
         }
     }
 
+    /// An approximately standard normal deviate truncated to ±`limit` (at most 6): the
+    /// Irwin–Hall sum of twelve uniforms minus 6 (mean 0, variance 1). Sums and products only,
+    /// so the value is the same on every machine, unlike a Box–Muller through the platform's
+    /// `ln` and `cos`.
+    pub fn normal(&mut self, limit: f64) -> f64 {
+        let mut s = -6.0;
+        for _ in 0..12 {
+            s += self.next_f64();
+        }
+        s.clamp(-limit, limit)
+    }
+
     /// Uniform index into a slice of length `len`.
     pub fn pick(&mut self, len: usize) -> usize {
         // usize -> u64 is lossless on every supported target, and the result is < len.

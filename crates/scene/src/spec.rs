@@ -16,6 +16,7 @@ use serde::Deserialize;
 
 use crate::catalog::{Asset, AssetKind, Catalog};
 use crate::error::SceneError;
+use crate::identity::{identity_name, IdentitySpec, SYNTHETIC};
 use crate::rng::hash_str;
 
 /// Upper bound on `count`: far above the paper's ~300k samples, low enough that a typo with
@@ -67,6 +68,10 @@ pub struct DatasetSpec {
     pub subject: SubjectSpec,
     #[serde(default)]
     pub split: SplitSpec,
+    /// The distributions synthetic people are drawn from (used when `assets.heads` has
+    /// "synthetic").
+    #[serde(default)]
+    pub identity: IdentitySpec,
 }
 
 fn default_resolution() -> i64 {
@@ -260,6 +265,39 @@ pub struct ResolvedSpec {
     pub camera: CameraSpec,
     pub lighting: LightingSpec,
     pub subject: SubjectSpec,
+    /// Synthetic people, when `assets.heads` selects them.
+    pub synthetic: Option<SyntheticPeople>,
+}
+
+/// The synthetic identities of a resolved spec: ids `0..count`, drawn after the catalog
+/// identities (an identity draw picks uniformly among catalog and synthetic people together).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SyntheticPeople {
+    pub spec: IdentitySpec,
+    pub count: u64,
+    /// The model files that generate them (catalog kind `model`, tag `model = "makehuman"`).
+    pub models: Vec<AssetRef>,
+    /// Held out by name (`split.test_identities`).
+    pub held_out_names: BTreeSet<String>,
+    /// Held out by `split.test_fraction`: identity k is held out when its seeded hash falls
+    /// below this fraction of the hash range (so the held-out set needs no list).
+    pub held_out_fraction: f64,
+    /// The dataset seed the fraction's hash is keyed by.
+    pub seed: u64,
+}
+
+impl SyntheticPeople {
+    /// Whether synthetic identity `id` is in the test split.
+    #[must_use]
+    pub fn held_out(&self, id: u64) -> bool {
+        let name = identity_name(id);
+        if self.held_out_names.contains(&name) {
+            return true;
+        }
+        // 2^64 * f in f64; the top 53 bits of the hash compared with f scaled to 2^53 is exact.
+        let h = hash_str(self.seed, &name) >> 11;
+        (h as f64) < self.held_out_fraction * (1u64 << 53) as f64
+    }
 }
 
 impl ResolvedSpec {
@@ -437,7 +475,24 @@ impl DatasetSpec {
                 other => other,
             })
         };
-        let heads = select(AssetKind::Head, &a.heads, "assets.heads")?;
+        // "synthetic" is not a catalog selector: it adds generated people (`[identity]`).
+        let wants_synthetic = a.heads.iter().any(|h| h == SYNTHETIC);
+        let catalog_selectors: Vec<String> = a
+            .heads
+            .iter()
+            .filter(|h| *h != SYNTHETIC)
+            .cloned()
+            .collect();
+        let heads = if catalog_selectors.is_empty() && wants_synthetic {
+            Vec::new()
+        } else {
+            select(AssetKind::Head, &catalog_selectors, "assets.heads")?
+        };
+        let synthetic = if wants_synthetic {
+            Some(self.synthetic_people(catalog, &bad)?)
+        } else {
+            None
+        };
         let hdris = select(AssetKind::Hdri, &a.hdris, "assets.hdris")?;
         let garments = select(AssetKind::Garment, &a.garments, "assets.garments")?;
         let glasses = select(AssetKind::Glasses, &a.glasses, "assets.glasses")?;
@@ -492,14 +547,25 @@ impl DatasetSpec {
                 .or_default()
                 .push(AssetRef::of(head));
         }
-        if by_identity.is_empty() {
+        if by_identity.is_empty() && synthetic.is_none() {
             return Err(bad(
                 "assets.heads",
-                "selects no heads; select at least one (e.g. [\"*\"])".into(),
+                "selects no heads; select at least one (e.g. [\"*\"] or [\"synthetic\"])".into(),
             ));
         }
-        let held_out = self.held_out_identities(&by_identity, &bad)?;
-        if held_out.len() == by_identity.len() {
+        let synthetic_count = synthetic.as_ref().map_or(0, |p| p.count);
+        let held_out = self.held_out_identities(&by_identity, synthetic_count, &bad)?;
+        let synthetic = synthetic.map(|mut p| {
+            p.held_out_names = held_out
+                .iter()
+                .filter(|n| is_synthetic_name(n))
+                .cloned()
+                .collect();
+            p.held_out_fraction = self.split.test_fraction;
+            p
+        });
+        let held_catalog = held_out.iter().filter(|n| !is_synthetic_name(n)).count();
+        if synthetic.is_none() && held_catalog == by_identity.len() {
             return Err(bad(
                 "split",
                 format!(
@@ -511,6 +577,8 @@ impl DatasetSpec {
         let identities = by_identity
             .into_iter()
             .map(|(name, heads)| Identity {
+                // A fraction is applied to the catalog and the synthetic people separately,
+                // so that mixing in generated people leaves the scans' split as it was.
                 held_out: held_out.contains(&name),
                 name,
                 heads,
@@ -534,6 +602,72 @@ impl DatasetSpec {
             camera: self.camera.clone(),
             lighting: self.lighting.clone(),
             subject: self.subject.clone(),
+            synthetic,
+        })
+    }
+
+    /// Validates `[identity]` and finds the model files synthetic people need.
+    fn synthetic_people(
+        &self,
+        catalog: &Catalog,
+        bad: &dyn Fn(&str, String) -> SceneError,
+    ) -> Result<SyntheticPeople, SceneError> {
+        let p = &self.identity;
+        let count = int_in("identity.count", p.count, 1, MAX_SYNTHETIC, bad)?;
+        range_in("identity.age_years", p.age_years, 1.0, 90.0, bad)?;
+        probability("identity.male_fraction", p.male_fraction, bad)?;
+        weights("identity.ancestry", &p.ancestry, bad)?;
+        weights("identity.skin_types", &p.skin_types, bad)?;
+        for (key, v) in [
+            ("identity.face_shape_sd", p.face_shape_sd),
+            ("identity.asymmetry_sd", p.asymmetry_sd),
+        ] {
+            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+                return Err(bad(
+                    key,
+                    format!("is {v}; it must be in [0, 1] (0.25 is a natural spread)"),
+                ));
+            }
+        }
+        range_in("identity.muscle", p.muscle, 0.0, 1.0, bad)?;
+        range_in("identity.weight", p.weight, 0.0, 1.0, bad)?;
+        range_in("identity.haemoglobin", p.haemoglobin, 0.0, 0.2, bad)?;
+        range_in("identity.eumelanin_ratio", p.eumelanin_ratio, 0.0, 1.0, bad)?;
+        range_in("identity.freckles", p.freckles, 0.0, 1.0, bad)?;
+        let mut models = Vec::new();
+        for id in SYNTHETIC_MODELS {
+            let asset = catalog.get(id).filter(|a| a.kind == AssetKind::Model).ok_or_else(|| {
+                bad(
+                    "assets.heads",
+                    format!(
+                        "selects \"synthetic\" but the catalog at {} has no model asset `{id}`: use the built-in asset pack",
+                        catalog.root.display()
+                    ),
+                )
+            })?;
+            let file = catalog.path_of(asset);
+            if !file.is_file() {
+                let fix = asset
+                    .tags
+                    .get("install")
+                    .map_or("restore it", String::as_str);
+                return Err(bad(
+                    "assets.heads",
+                    format!(
+                        "selects \"synthetic\" but the model file {} is not installed: {fix}",
+                        file.display()
+                    ),
+                ));
+            }
+            models.push(AssetRef::of(asset));
+        }
+        Ok(SyntheticPeople {
+            spec: p.clone(),
+            count,
+            models,
+            held_out_names: BTreeSet::new(),
+            held_out_fraction: 0.0,
+            seed: self.seed,
         })
     }
 
@@ -545,6 +679,7 @@ impl DatasetSpec {
     fn held_out_identities(
         &self,
         identities: &BTreeMap<String, Vec<AssetRef>>,
+        synthetic_count: u64,
         bad: &dyn Fn(&str, String) -> SceneError,
     ) -> Result<BTreeSet<String>, SceneError> {
         let sp = &self.split;
@@ -557,7 +692,8 @@ impl DatasetSpec {
         }
         let mut held = BTreeSet::new();
         for name in &sp.test_identities {
-            if !identities.contains_key(name) {
+            let synthetic = synthetic_id(name).is_some_and(|k| k < synthetic_count);
+            if !identities.contains_key(name) && !synthetic {
                 let known: Vec<&str> = identities.keys().map(String::as_str).collect();
                 return Err(bad(
                     "split.test_identities",
@@ -579,6 +715,40 @@ impl DatasetSpec {
             held.extend(ranked.into_iter().take(want).map(|(_, name)| name.clone()));
         }
         Ok(held)
+    }
+}
+
+/// The largest `identity.count`: ids are printed with 7 digits.
+pub const MAX_SYNTHETIC: i64 = 10_000_000;
+
+/// The model assets synthetic people are generated from.
+pub const SYNTHETIC_MODELS: [&str; 2] = ["makehuman_core", "makehuman_targets"];
+
+fn is_synthetic_name(name: &str) -> bool {
+    synthetic_id(name).is_some()
+}
+
+/// `synthetic-0000042` → 42.
+pub fn synthetic_id(name: &str) -> Option<u64> {
+    let digits = name.strip_prefix("synthetic-")?;
+    (digits.len() == 7 && digits.bytes().all(|b| b.is_ascii_digit()))
+        .then(|| digits.parse().ok())
+        .flatten()
+}
+
+/// Non-negative finite weights with a positive sum.
+fn weights(
+    key: &str,
+    w: &[f64],
+    bad: &dyn Fn(&str, String) -> SceneError,
+) -> Result<(), SceneError> {
+    if w.iter().all(|x| x.is_finite() && *x >= 0.0) && w.iter().sum::<f64>() > 0.0 {
+        Ok(())
+    } else {
+        Err(bad(
+            key,
+            format!("is {w:?}; give non-negative weights with a positive sum"),
+        ))
     }
 }
 

@@ -534,3 +534,69 @@ fn passes_default_order_and_none() {
     let text = example_with("spp = 256", "spp = 256\npasses = []");
     assert!(resolve(&text).expect("spec").passes.is_empty());
 }
+
+/// `heads = ["synthetic"]`: every identity id is a person, held-out ids never train, and
+/// identity k's parameters do not depend on which sample drew it.
+#[test]
+fn synthetic_identities_split_and_repeat() {
+    let catalog = lightfarm_scene::Catalog::builtin().unwrap();
+    let text = "name = \"syn\"\nseed = 5\ncount = 4000\n[assets]\nheads = [\"synthetic\", \"lee_perry_smith\"]\n[identity]\ncount = 300\n[split]\ntest_fraction = 0.2\n";
+    let spec = lightfarm_scene::spec::DatasetSpec::from_toml_str(text, "syn.toml")
+        .unwrap()
+        .validate(&catalog)
+        .unwrap();
+    let people = spec.synthetic.as_ref().expect("synthetic people");
+    let held = (0..300).filter(|&k| people.held_out(k)).count();
+    assert!(
+        (35..=85).contains(&held),
+        "{held} of 300 held out for a fraction of 0.2"
+    );
+    let mut seen = std::collections::BTreeMap::new();
+    let mut scans = 0;
+    for i in 0..4000 {
+        let s = lightfarm_scene::expand::expand(&spec, i).unwrap();
+        match &s.head.synthetic {
+            Some(h) => {
+                let k = h.identity.id;
+                assert!(k < 300);
+                assert_eq!(s.identity, lightfarm_scene::identity::identity_name(k));
+                let want = if people.held_out(k) {
+                    lightfarm_scene::expand::Split::Test
+                } else {
+                    lightfarm_scene::expand::Split::Train
+                };
+                assert_eq!(s.split, want, "sample {i}: identity {k}");
+                if let Some(prev) = seen.insert(k, h.identity.clone()) {
+                    assert_eq!(prev, h.identity, "identity {k} changed between samples");
+                }
+            }
+            None => scans += 1,
+        }
+    }
+    // One scan among 301 identities: about 13 of 4000 samples.
+    assert!((2..=35).contains(&scans), "{scans} scan samples");
+    assert!(
+        seen.len() > 280,
+        "only {} distinct people in 4000 samples",
+        seen.len()
+    );
+    // A named synthetic identity can be held out; a name past the count cannot.
+    let named = text.replace(
+        "test_fraction = 0.2",
+        "test_identities = [\"synthetic-0000007\"]",
+    );
+    let spec = lightfarm_scene::spec::DatasetSpec::from_toml_str(&named, "syn.toml")
+        .unwrap()
+        .validate(&catalog)
+        .unwrap();
+    assert!(spec.synthetic.as_ref().unwrap().held_out(7));
+    let bad = text.replace(
+        "test_fraction = 0.2",
+        "test_identities = [\"synthetic-0000300\"]",
+    );
+    let err = lightfarm_scene::spec::DatasetSpec::from_toml_str(&bad, "syn.toml")
+        .unwrap()
+        .validate(&catalog)
+        .unwrap_err();
+    assert!(err.to_string().contains("synthetic-0000300"), "{err}");
+}

@@ -51,7 +51,7 @@ pub struct AssemblyStats {
 
 /// Resolves a sample's asset to its catalog entry and file, refusing a hash mismatch: a sample
 /// expanded against other bytes would otherwise render silently different.
-fn resolve<'a>(
+pub(crate) fn resolve<'a>(
     catalog: &'a Catalog,
     id: &str,
     blake3: &str,
@@ -261,13 +261,18 @@ fn remove_material_triangles(scene: &mut Scene, name: &str) {
 
 /// Builds sample `sample`'s scene from the assets of `catalog`.
 pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, SubjectError> {
-    let (head_asset, head_path) = resolve(
-        catalog,
-        &sample.head.id,
-        &sample.head.blake3,
-        AssetKind::Head,
-    )?;
-    let mut head = Head::load(head_asset, &head_path, &sample.head.expression.weights)?;
+    let mut head = match &sample.head.synthetic {
+        Some(synthetic) => crate::synthetic::synthetic_head(catalog, synthetic, sample)?,
+        None => {
+            let (head_asset, head_path) = resolve(
+                catalog,
+                &sample.head.id,
+                &sample.head.blake3,
+                AssetKind::Head,
+            )?;
+            Head::load(head_asset, &head_path, &sample.head.expression.weights)?
+        }
+    };
     let lm = head.landmarks;
     let to_world = subject_transform(&lm, sample.camera.subject_offset_m);
     let camera = sample_camera(sample)?;

@@ -27,7 +27,7 @@ fn head_material(name: &str) -> Option<(Option<MaterialModel>, ObjectClass)> {
     use MaterialModel as M;
     use ObjectClass as C;
     Some(match name {
-        "skin" | "leeperrysmith_skin" => (Some(M::Skin), C::Skin),
+        "skin" | "skin_body" | "leeperrysmith_skin" => (Some(M::Skin), C::Skin),
         "eyes" | "sclera" | "iris" => (Some(M::Eye), C::Eyes),
         "cornea" => (Some(M::Cornea), C::Eyes),
         "teeth" => (Some(M::Teeth), C::Mouth),
@@ -95,6 +95,16 @@ impl Head {
     ) -> Result<Head, SubjectError> {
         let mut scene = Scene::load_gltf(path)?;
         assign_head_materials(&mut scene);
+        Head::from_scene(asset, scene, expression)
+    }
+
+    /// [`Head::load`] for a scene already in memory (a generated person: `asset` is then a
+    /// catalog-less description carrying its id, no frame and no landmark table).
+    pub fn from_scene(
+        asset: &Asset,
+        mut scene: Scene,
+        expression: &BTreeMap<String, f64>,
+    ) -> Result<Head, SubjectError> {
         if scene.instances.is_empty() {
             return Err(asset_error(asset, "the file has no mesh instances"));
         }

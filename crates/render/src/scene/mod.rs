@@ -115,6 +115,13 @@ impl Mesh {
     pub fn recompute_normals(&mut self) {
         self.normals = geometry::smooth_normals(&self.positions, &self.indices);
     }
+
+    /// Replaces the tangents by ones derived from the UVs and normals (as for a glTF file
+    /// without TANGENT), for meshes built in code.
+    pub fn recompute_tangents(&mut self) {
+        self.tangents =
+            geometry::uv_tangents(&self.positions, &self.normals, &self.uvs, &self.indices);
+    }
 }
 
 /// Fibres: polylines with a radius per vertex, rendered as round cones with spherical caps
