@@ -129,8 +129,9 @@ pub fn spec(cmd: SpecCommand) -> Result<()> {
                 .map(|s| s.to_string())
                 .collect();
             if let Some(p) = &spec.synthetic {
-                let held = (0..p.count.min(100_000)).filter(|&k| p.held_out(k)).count();
+                // Held-out ids are a hash rule, not a list: count them over a prefix.
                 let scanned = p.count.min(100_000);
+                let held = (0..scanned).filter(|&k| p.held_out(k)).count();
                 train.push(format!("{} synthetic people (ids 0..{})", p.count, p.count));
                 test.push(format!(
                     "synthetic ids held out: {held} of the first {scanned} (names {:?})",

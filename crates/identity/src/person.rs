@@ -15,7 +15,7 @@ use crate::makehuman::MakeHuman;
 use crate::skin::chromophore::{
     category_ita_bounds, ita_deg, melanin_for_ita, Chromophores, MELANIN_MAX,
 };
-use crate::skin::maps::{skin_textures, FaceUv, SkinLook, CHEEK_BLOOD};
+use crate::skin::maps::{albedo_table, skin_textures, SkinLook, CHEEK_BLOOD};
 
 /// Texture sizes: the head island (face and scalp, ~1100 texels across the face) and the
 /// atlas of the rest (neck, shoulders, ears).
@@ -45,7 +45,7 @@ const ITA_LIMITS: (f64, f64) = (-55.0, 68.0);
 /// Oxygen saturation of skin blood (Jimenez et al. 2010 use 0.75 for venous-arterial mix).
 const OXYGENATION: f64 = 0.75;
 
-/// What was derived while generating, for the sample's record.
+/// What was derived while generating, for logs and tests (every input is in the sample JSON).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct PersonRecord {
     pub generator: String,
@@ -124,9 +124,7 @@ pub fn generate(
         ));
     }
     let shape = shape_of(id);
-    let bust = bust::build(model, &shape).map_err(|e| generate_error(id, e.to_string()))?;
-    let face_uv = FaceUv::find(model)
-        .ok_or_else(|| generate_error(id, "the base mesh has no face landmarks (is it hm08?)"))?;
+    let bust = bust::build(model, &shape).map_err(|reason| generate_error(id, reason))?;
     let base = chromophores(id);
     let ita = ita_deg(base.albedo());
     // Stubble: men from their late teens, a per-person strength.
@@ -140,9 +138,10 @@ pub fn generate(
         seed: id.skin.texture_seed,
     };
 
+    let table = albedo_table(&look);
     let mut scene = Scene::default();
     let add_skin = |scene: &mut Scene, name: &str, rect: [[f32; 2]; 2], w: u32, h: u32| {
-        let t = skin_textures(model, &face_uv, &look, rect, w, h);
+        let t = skin_textures(model, &look, &table, rect, w, h);
         let first = scene.textures.len() as u32;
         scene
             .textures

@@ -5,9 +5,9 @@
 use lightfarm_identity::skin::chromophore::{
     category_ita_bounds, deoxyhaemoglobin_mua, eumelanin_mua, ita_deg, linear_srgb_to_lab,
     melanin_for_ita, oxyhaemoglobin_mua, pheomelanin_mua, reflectance_to_linear_srgb,
-    reflectance_to_xyz, skin_category, spectra, wavelengths_nm, AlbedoTable, Chromophores,
-    N_WAVELENGTHS,
+    reflectance_to_xyz, skin_category, wavelengths_nm, AlbedoTable, Chromophores, N_WAVELENGTHS,
 };
+use lightfarm_identity::skin::spectra;
 
 fn skin(melanin: f64, haemoglobin: f64) -> Chromophores {
     Chromophores {

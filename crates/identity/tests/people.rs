@@ -5,7 +5,7 @@ mod common;
 use lightfarm_identity::makehuman::bust::{SLOT_EYES, SLOT_FACE};
 use lightfarm_identity::person::{chromophores, generate, TextureSize};
 use lightfarm_identity::skin::chromophore::{ita_deg, skin_category};
-use lightfarm_identity::skin::maps::{skin_textures, FaceUv, SkinLook};
+use lightfarm_identity::skin::maps::{albedo_table, skin_textures, SkinLook};
 use lightfarm_scene::identity::{sample_identity, IdentitySpec};
 
 const SEED: u64 = 7;
@@ -74,7 +74,7 @@ fn identities_differ_in_shape_and_colour() {
 #[test]
 fn skin_tones_cover_the_six_categories_in_proportion() {
     let m = common::model();
-    let f = FaceUv::find(m).unwrap();
+    let f = m.face_uv;
     let c = f.cheeks[0];
     let r = 0.4 * f.uv_per_cm;
     let spec = IdentitySpec {
@@ -94,8 +94,8 @@ fn skin_tones_cover_the_six_categories_in_proportion() {
         // A 8 mm patch of the left cheek, averaged in linear light.
         let t = skin_textures(
             m,
-            &f,
             &look,
+            &albedo_table(&look),
             [[c[0] - r, c[1] - r], [c[0] + r, c[1] + r]],
             8,
             8,

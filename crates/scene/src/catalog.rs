@@ -295,6 +295,26 @@ impl Catalog {
         self.root.join(&asset.path)
     }
 
+    /// Why `asset`'s file is absent and what fixes it: model data too large for the repository
+    /// (tag `install`) names the command that installs it.
+    pub fn missing_file_reason(&self, asset: &Asset) -> String {
+        let file = self.path_of(asset);
+        match asset.tags.get("install") {
+            Some(fix) => format!(
+                "file {} of asset `{}` is not installed: run {fix}",
+                file.display(),
+                asset.id
+            ),
+            None => format!(
+                "file {} of asset `{}` does not exist: restore it or fix the path (relative to \
+                 {})",
+                file.display(),
+                asset.id,
+                self.root.display()
+            ),
+        }
+    }
+
     /// Recomputes the BLAKE3 hash of every file; the first missing file or mismatch is an
     /// error.
     pub fn verify(&self) -> Result<(), SceneError> {
@@ -305,21 +325,7 @@ impl Catalog {
                     SceneError::Invalid {
                         path: self.catalog_path(),
                         key: format!("asset[{i}].path"),
-                        reason: match asset.tags.get("install") {
-                            // Model data too large for the repository says how to get it.
-                            Some(fix) => format!(
-                                "file {} of asset `{}` is not installed: run {fix}",
-                                file.display(),
-                                asset.id
-                            ),
-                            None => format!(
-                                "file {} of asset `{}` does not exist: restore it or fix the \
-                                 path (relative to {})",
-                                file.display(),
-                                asset.id,
-                                self.root.display()
-                            ),
-                        },
+                        reason: self.missing_file_reason(asset),
                     }
                 } else {
                     SceneError::Io {

@@ -6,9 +6,15 @@
 //! JSON carries, so a sample can be rebuilt bit for bit from its record and the model files it
 //! names by hash.
 
+use std::collections::BTreeSet;
+
 use serde::{Deserialize, Serialize};
 
-use crate::rng::SampleRng;
+use crate::catalog::{AssetKind, Catalog};
+use crate::error::SceneError;
+use crate::rng::{hash_str, SampleRng};
+use crate::spec::AssetRef;
+use crate::validate::{int_in, probability, range_in, weights};
 
 /// The selector in `[assets] heads` that adds synthetic people.
 pub const SYNTHETIC: &str = "synthetic";
@@ -182,4 +188,114 @@ pub fn sample_identity(spec: &IdentitySpec, seed: u64, id: u64) -> SyntheticIden
             texture_seed,
         },
     }
+}
+
+/// The largest `identity.count`: ids are printed with 7 digits.
+pub const MAX_SYNTHETIC: i64 = 10_000_000;
+
+/// The model assets synthetic people are generated from.
+pub const SYNTHETIC_MODELS: [&str; 2] = ["makehuman_core", "makehuman_targets"];
+
+pub(crate) fn is_synthetic_name(name: &str) -> bool {
+    synthetic_id(name).is_some()
+}
+
+/// `synthetic-0000042` → 42.
+pub fn synthetic_id(name: &str) -> Option<u64> {
+    let digits = name.strip_prefix("synthetic-")?;
+    (digits.len() == 7 && digits.bytes().all(|b| b.is_ascii_digit()))
+        .then(|| digits.parse().ok())
+        .flatten()
+}
+
+/// The synthetic identities of a resolved spec: ids `0..count`, drawn after the catalog
+/// identities (an identity draw picks uniformly among catalog and synthetic people together).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SyntheticPeople {
+    pub spec: IdentitySpec,
+    pub count: u64,
+    /// The model files that generate them (catalog kind `model`, tag `model = "makehuman"`).
+    pub models: Vec<AssetRef>,
+    /// Held out by name (`split.test_identities`).
+    pub held_out_names: BTreeSet<String>,
+    /// Held out by `split.test_fraction`: identity k is held out when its seeded hash falls
+    /// below this fraction of the hash range (so the held-out set needs no list).
+    pub held_out_fraction: f64,
+    /// The dataset seed the fraction's hash is keyed by.
+    pub seed: u64,
+}
+
+impl SyntheticPeople {
+    /// Whether synthetic identity `id` is in the test split.
+    #[must_use]
+    pub fn held_out(&self, id: u64) -> bool {
+        let name = identity_name(id);
+        if self.held_out_names.contains(&name) {
+            return true;
+        }
+        // 2^64 * f in f64; the top 53 bits of the hash compared with f scaled to 2^53 is exact.
+        let h = hash_str(self.seed, &name) >> 11;
+        (h as f64) < self.held_out_fraction * (1u64 << 53) as f64
+    }
+}
+
+/// Validates `[identity]` and finds the model files synthetic people need; the held-out
+/// fields are filled in by the split.
+pub(crate) fn resolve_people(
+    p: &IdentitySpec,
+    seed: u64,
+    catalog: &Catalog,
+    bad: &dyn Fn(&str, String) -> SceneError,
+) -> Result<SyntheticPeople, SceneError> {
+    let count = int_in("identity.count", p.count, 1, MAX_SYNTHETIC, bad)?;
+    range_in("identity.age_years", p.age_years, 1.0, 90.0, bad)?;
+    probability("identity.male_fraction", p.male_fraction, bad)?;
+    weights("identity.ancestry", &p.ancestry, bad)?;
+    weights("identity.skin_types", &p.skin_types, bad)?;
+    for (key, v) in [
+        ("identity.face_shape_sd", p.face_shape_sd),
+        ("identity.asymmetry_sd", p.asymmetry_sd),
+    ] {
+        if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
+            return Err(bad(
+                key,
+                format!("is {v}; it must be in [0, 1] (0.25 is a natural spread)"),
+            ));
+        }
+    }
+    range_in("identity.muscle", p.muscle, 0.0, 1.0, bad)?;
+    range_in("identity.weight", p.weight, 0.0, 1.0, bad)?;
+    range_in("identity.haemoglobin", p.haemoglobin, 0.0, 0.2, bad)?;
+    range_in("identity.eumelanin_ratio", p.eumelanin_ratio, 0.0, 1.0, bad)?;
+    range_in("identity.freckles", p.freckles, 0.0, 1.0, bad)?;
+    let mut models = Vec::new();
+    for id in SYNTHETIC_MODELS {
+        let asset = catalog.get(id).filter(|a| a.kind == AssetKind::Model).ok_or_else(|| {
+            bad(
+                "assets.heads",
+                format!(
+                    "selects \"synthetic\" but the catalog at {} has no model asset `{id}`: use the built-in asset pack",
+                    catalog.root.display()
+                ),
+            )
+        })?;
+        if !catalog.path_of(asset).is_file() {
+            return Err(bad(
+                "assets.heads",
+                format!(
+                    "selects \"synthetic\" but {}",
+                    catalog.missing_file_reason(asset)
+                ),
+            ));
+        }
+        models.push(AssetRef::of(asset));
+    }
+    Ok(SyntheticPeople {
+        spec: p.clone(),
+        count,
+        models,
+        held_out_names: BTreeSet::new(),
+        held_out_fraction: 0.0,
+        seed,
+    })
 }

@@ -11,6 +11,7 @@ pub mod expand;
 pub mod identity;
 pub mod rng;
 pub mod spec;
+mod validate;
 
 pub use catalog::{Asset, AssetKind, Catalog};
 pub use error::SceneError;

@@ -16,8 +16,11 @@ use serde::Deserialize;
 
 use crate::catalog::{Asset, AssetKind, Catalog};
 use crate::error::SceneError;
-use crate::identity::{identity_name, IdentitySpec, SYNTHETIC};
+use crate::identity::{
+    is_synthetic_name, resolve_people, synthetic_id, IdentitySpec, SyntheticPeople, SYNTHETIC,
+};
 use crate::rng::hash_str;
+use crate::validate::{int_in, positive, probability, range_in};
 
 /// Upper bound on `count`: far above the paper's ~300k samples, low enough that a typo with
 /// extra zeros is caught before a coordinator tries to queue it.
@@ -224,7 +227,7 @@ pub struct AssetRef {
 }
 
 impl AssetRef {
-    fn of(asset: &Asset) -> Self {
+    pub(crate) fn of(asset: &Asset) -> Self {
         Self {
             id: asset.id.clone(),
             blake3: asset.blake3.clone(),
@@ -267,37 +270,6 @@ pub struct ResolvedSpec {
     pub subject: SubjectSpec,
     /// Synthetic people, when `assets.heads` selects them.
     pub synthetic: Option<SyntheticPeople>,
-}
-
-/// The synthetic identities of a resolved spec: ids `0..count`, drawn after the catalog
-/// identities (an identity draw picks uniformly among catalog and synthetic people together).
-#[derive(Debug, Clone, PartialEq)]
-pub struct SyntheticPeople {
-    pub spec: IdentitySpec,
-    pub count: u64,
-    /// The model files that generate them (catalog kind `model`, tag `model = "makehuman"`).
-    pub models: Vec<AssetRef>,
-    /// Held out by name (`split.test_identities`).
-    pub held_out_names: BTreeSet<String>,
-    /// Held out by `split.test_fraction`: identity k is held out when its seeded hash falls
-    /// below this fraction of the hash range (so the held-out set needs no list).
-    pub held_out_fraction: f64,
-    /// The dataset seed the fraction's hash is keyed by.
-    pub seed: u64,
-}
-
-impl SyntheticPeople {
-    /// Whether synthetic identity `id` is in the test split.
-    #[must_use]
-    pub fn held_out(&self, id: u64) -> bool {
-        let name = identity_name(id);
-        if self.held_out_names.contains(&name) {
-            return true;
-        }
-        // 2^64 * f in f64; the top 53 bits of the hash compared with f scaled to 2^53 is exact.
-        let h = hash_str(self.seed, &name) >> 11;
-        (h as f64) < self.held_out_fraction * (1u64 << 53) as f64
-    }
 }
 
 impl ResolvedSpec {
@@ -489,7 +461,7 @@ impl DatasetSpec {
             select(AssetKind::Head, &catalog_selectors, "assets.heads")?
         };
         let synthetic = if wants_synthetic {
-            Some(self.synthetic_people(catalog, &bad)?)
+            Some(resolve_people(&self.identity, self.seed, catalog, &bad)?)
         } else {
             None
         };
@@ -606,71 +578,6 @@ impl DatasetSpec {
         })
     }
 
-    /// Validates `[identity]` and finds the model files synthetic people need.
-    fn synthetic_people(
-        &self,
-        catalog: &Catalog,
-        bad: &dyn Fn(&str, String) -> SceneError,
-    ) -> Result<SyntheticPeople, SceneError> {
-        let p = &self.identity;
-        let count = int_in("identity.count", p.count, 1, MAX_SYNTHETIC, bad)?;
-        range_in("identity.age_years", p.age_years, 1.0, 90.0, bad)?;
-        probability("identity.male_fraction", p.male_fraction, bad)?;
-        weights("identity.ancestry", &p.ancestry, bad)?;
-        weights("identity.skin_types", &p.skin_types, bad)?;
-        for (key, v) in [
-            ("identity.face_shape_sd", p.face_shape_sd),
-            ("identity.asymmetry_sd", p.asymmetry_sd),
-        ] {
-            if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
-                return Err(bad(
-                    key,
-                    format!("is {v}; it must be in [0, 1] (0.25 is a natural spread)"),
-                ));
-            }
-        }
-        range_in("identity.muscle", p.muscle, 0.0, 1.0, bad)?;
-        range_in("identity.weight", p.weight, 0.0, 1.0, bad)?;
-        range_in("identity.haemoglobin", p.haemoglobin, 0.0, 0.2, bad)?;
-        range_in("identity.eumelanin_ratio", p.eumelanin_ratio, 0.0, 1.0, bad)?;
-        range_in("identity.freckles", p.freckles, 0.0, 1.0, bad)?;
-        let mut models = Vec::new();
-        for id in SYNTHETIC_MODELS {
-            let asset = catalog.get(id).filter(|a| a.kind == AssetKind::Model).ok_or_else(|| {
-                bad(
-                    "assets.heads",
-                    format!(
-                        "selects \"synthetic\" but the catalog at {} has no model asset `{id}`: use the built-in asset pack",
-                        catalog.root.display()
-                    ),
-                )
-            })?;
-            let file = catalog.path_of(asset);
-            if !file.is_file() {
-                let fix = asset
-                    .tags
-                    .get("install")
-                    .map_or("restore it", String::as_str);
-                return Err(bad(
-                    "assets.heads",
-                    format!(
-                        "selects \"synthetic\" but the model file {} is not installed: {fix}",
-                        file.display()
-                    ),
-                ));
-            }
-            models.push(AssetRef::of(asset));
-        }
-        Ok(SyntheticPeople {
-            spec: p.clone(),
-            count,
-            models,
-            held_out_names: BTreeSet::new(),
-            held_out_fraction: 0.0,
-            seed: self.seed,
-        })
-    }
-
     /// Resolves `[split]` to the set of held-out identity names.
     ///
     /// With `test_fraction = f`, `ceil(f * n)` identities are held out (so any non-zero fraction
@@ -716,104 +623,4 @@ impl DatasetSpec {
         }
         Ok(held)
     }
-}
-
-/// The largest `identity.count`: ids are printed with 7 digits.
-pub const MAX_SYNTHETIC: i64 = 10_000_000;
-
-/// The model assets synthetic people are generated from.
-pub const SYNTHETIC_MODELS: [&str; 2] = ["makehuman_core", "makehuman_targets"];
-
-fn is_synthetic_name(name: &str) -> bool {
-    synthetic_id(name).is_some()
-}
-
-/// `synthetic-0000042` → 42.
-pub fn synthetic_id(name: &str) -> Option<u64> {
-    let digits = name.strip_prefix("synthetic-")?;
-    (digits.len() == 7 && digits.bytes().all(|b| b.is_ascii_digit()))
-        .then(|| digits.parse().ok())
-        .flatten()
-}
-
-/// Non-negative finite weights with a positive sum.
-fn weights(
-    key: &str,
-    w: &[f64],
-    bad: &dyn Fn(&str, String) -> SceneError,
-) -> Result<(), SceneError> {
-    if w.iter().all(|x| x.is_finite() && *x >= 0.0) && w.iter().sum::<f64>() > 0.0 {
-        Ok(())
-    } else {
-        Err(bad(
-            key,
-            format!("is {w:?}; give non-negative weights with a positive sum"),
-        ))
-    }
-}
-
-fn int_in(
-    key: &str,
-    value: i64,
-    min: i64,
-    max: i64,
-    bad: &dyn Fn(&str, String) -> SceneError,
-) -> Result<u64, SceneError> {
-    if value < min || value > max {
-        return Err(bad(
-            key,
-            format!("is {value}; it must be an integer in {min}..={max}"),
-        ));
-    }
-    // min >= 1 for every caller, so the value is positive here.
-    u64::try_from(value).map_err(|_| bad(key, format!("is {value}; it must be positive")))
-}
-
-fn probability(
-    key: &str,
-    p: f64,
-    bad: &dyn Fn(&str, String) -> SceneError,
-) -> Result<(), SceneError> {
-    if (0.0..=1.0).contains(&p) {
-        Ok(())
-    } else {
-        Err(bad(key, format!("is {p}; it must be in [0, 1]")))
-    }
-}
-
-fn positive(key: &str, v: f64, bad: &dyn Fn(&str, String) -> SceneError) -> Result<(), SceneError> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(bad(key, format!("is {v}; it must be a finite number > 0")))
-    }
-}
-
-/// A `[min, max]` range: finite, ordered, inside `[lo, hi]`.
-fn range_in(
-    key: &str,
-    [min, max]: [f64; 2],
-    lo: f64,
-    hi: f64,
-    bad: &dyn Fn(&str, String) -> SceneError,
-) -> Result<(), SceneError> {
-    if !(min.is_finite() && max.is_finite()) {
-        return Err(bad(
-            key,
-            format!("is [{min}, {max}]; both ends must be finite numbers"),
-        ));
-    }
-    if min > max {
-        return Err(bad(
-            key,
-            format!("is [{min}, {max}]: min > max; write it as [{max}, {min}]"),
-        ));
-    }
-    if min < lo || max > hi {
-        return Err(bad(
-            key,
-            format!("is [{min}, {max}]; it must lie within [{lo}, {hi}] (clamp it to that range)"),
-        ));
-    }
-    Ok(())
 }

@@ -7,8 +7,7 @@ use lightfarm_identity::makehuman::MakeHuman;
 use lightfarm_identity::person::{generate, TextureSize};
 use lightfarm_scene::catalog::{Asset, AssetKind, Catalog};
 use lightfarm_scene::expand::{SampleSpec, SyntheticHead};
-use lightfarm_scene::identity::identity_name;
-use lightfarm_scene::spec::SYNTHETIC_MODELS;
+use lightfarm_scene::identity::{identity_name, SYNTHETIC_MODELS};
 
 use crate::assemble::resolve;
 use crate::head::{assign_head_materials, Head};
@@ -72,6 +71,7 @@ pub fn synthetic_head(
         asset: name.clone(),
         reason: e.to_string(),
     })?;
+    tracing::debug!(identity = %name, record = ?person.record, "generated a synthetic person");
     let mut scene = person.scene;
     assign_head_materials(&mut scene);
     let asset = Asset {

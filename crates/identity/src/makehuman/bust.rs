@@ -9,7 +9,6 @@ use lightfarm_scene::rng::SampleRng;
 use super::macros::{macro_weights, Macros};
 use super::obj::{triangles, BaseMesh, Face};
 use super::MakeHuman;
-use crate::error::IdentityError;
 
 /// MakeHuman works in decimetres; scenes are in metres.
 const DM_TO_M: f32 = 0.1;
@@ -129,7 +128,7 @@ pub type TargetWeights = BTreeMap<String, f64>;
 pub fn shaped_positions(
     model: &MakeHuman,
     shape: &Shape,
-) -> Result<(Vec<[f32; 3]>, TargetWeights), IdentityError> {
+) -> Result<(Vec<[f32; 3]>, TargetWeights), String> {
     let mut weights = macro_weights(&shape.macros);
     weights.extend(detail_weights(model, shape));
     let mut v = model.base.positions.clone();
@@ -138,10 +137,7 @@ pub fn shaped_positions(
         // are absent or empty; both mean "no offset".
         if let Some(t) = model.targets.get(name) {
             t.apply(&mut v, w as f32)
-                .map_err(|reason| IdentityError::Generate {
-                    identity: "-".into(),
-                    reason: format!("target {name}: {reason}"),
-                })?;
+                .map_err(|reason| format!("target {name}: {reason}"))?;
         }
     }
     Ok((v, weights))
@@ -218,17 +214,15 @@ pub fn island_uv(uv: [f32; 2]) -> [f32; 2] {
     [(uv[0] - u0) / (u1 - u0), 1.0 - (uv[1] - v0) / (v1 - v0)]
 }
 
-/// Builds the bust of `shape`.
-pub fn build(model: &MakeHuman, shape: &Shape) -> Result<Bust, IdentityError> {
+/// Builds the bust of `shape`. An error is a reason naming the target, joint or proxy at fault
+/// (the caller names the identity); a model that passed [`MakeHuman::load`]'s checks has none.
+pub fn build(model: &MakeHuman, shape: &Shape) -> Result<Bust, String> {
     let (v, weights) = shaped_positions(model, shape)?;
     let base: &BaseMesh = &model.base;
-    let joint = |name: &str| -> Result<[f32; 3], IdentityError> {
+    let joint = |name: &str| -> Result<[f32; 3], String> {
         let idx = base.vertices_of(name);
         if idx.is_empty() {
-            return Err(IdentityError::Generate {
-                identity: "-".into(),
-                reason: format!("the base mesh has no joint group {name:?}"),
-            });
+            return Err(format!("the base mesh has no joint group {name:?}"));
         }
         Ok(centroid(&v, &idx))
     };
@@ -296,13 +290,7 @@ pub fn build(model: &MakeHuman, shape: &Shape) -> Result<Bust, IdentityError> {
         }
     }
     // Eyes: the proxy follows the shaped body; the eye texture's clear texels are the cornea.
-    let eyes = model
-        .eye_proxy
-        .fit(&v)
-        .map_err(|reason| IdentityError::Generate {
-            identity: "-".into(),
-            reason,
-        })?;
+    let eyes = model.eye_proxy.fit(&v)?;
     let eye_uv = |t: u32| {
         model
             .eye_mesh
@@ -311,14 +299,7 @@ pub fn build(model: &MakeHuman, shape: &Shape) -> Result<Bust, IdentityError> {
             .copied()
             .unwrap_or([0.0, 0.0])
     };
-    for face in &model.eye_mesh.faces {
-        let n = face.corners.len() as f32;
-        let c = face.corners.iter().fold([0.0f32; 2], |a, &(_, t)| {
-            let uv = eye_uv(t);
-            [a[0] + uv[0] / n, a[1] + uv[1] / n]
-        });
-        let clear =
-            model.eye_texture.channels == 4 && model.eye_texture.sample(c[0], c[1], 3) < 0.5;
+    for (face, &clear) in model.eye_mesh.faces.iter().zip(&model.eye_clear) {
         let slot = if clear { SLOT_CORNEA } else { SLOT_EYES };
         b.face(
             face,
@@ -341,17 +322,8 @@ pub fn build(model: &MakeHuman, shape: &Shape) -> Result<Bust, IdentityError> {
     for (name, unit) in &model.face_units {
         let mut moved = v.clone();
         unit.apply(&mut moved, 1.0)
-            .map_err(|reason| IdentityError::Generate {
-                identity: "-".into(),
-                reason: format!("face unit {name}: {reason}"),
-            })?;
-        let moved_eyes = model
-            .eye_proxy
-            .fit(&moved)
-            .map_err(|reason| IdentityError::Generate {
-                identity: "-".into(),
-                reason,
-            })?;
+            .map_err(|reason| format!("face unit {name}: {reason}"))?;
+        let moved_eyes = model.eye_proxy.fit(&moved)?;
         let deltas = source
             .iter()
             .map(|&s| {

@@ -16,6 +16,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use crate::error::{model_error, IdentityError};
+use crate::skin::maps::FaceUv;
 use obj::BaseMesh;
 use proxy::Proxy;
 use targets::{Target, Targets};
@@ -67,9 +68,11 @@ pub struct MakeHuman {
     /// RGBA; alpha < 0.5 is the cornea's clear part over the iris.
     pub eye_texture: Image8,
     pub masks: Masks,
-    /// BLAKE3 of the two files, in the identity record so a sample names the data it used.
-    pub core_blake3: String,
-    pub targets_blake3: String,
+    /// Per eye-mesh face: whether it is the cornea's clear part (its texture's alpha < 0.5 at
+    /// the face's UV centre), the same for every person.
+    pub eye_clear: Vec<bool>,
+    /// Skin landmarks in the UV layout, the same for every person.
+    pub face_uv: FaceUv,
 }
 
 /// Where the two files are looked for by default, relative to the asset pack.
@@ -188,7 +191,36 @@ impl MakeHuman {
                 format!("{} face units; the ARKit set has 52", face_units.len()),
             ));
         }
-        let model = MakeHuman {
+        check_base(&base, &label("base.obj"))?;
+        check_targets(targets_set.iter(), &base, targets)?;
+        check_targets(face_units.iter().map(|(n, t)| (n, t)), &base, core)?;
+        let n = base.positions.len();
+        let refs = eye_proxy.refs.iter().flatten().copied();
+        let scale_refs = eye_proxy
+            .scales
+            .iter()
+            .flatten()
+            .flat_map(|&(a, b, _)| [a, b]);
+        if let Some(i) = refs.chain(scale_refs).find(|&i| i as usize >= n) {
+            return Err(model_error(
+                core,
+                "eyes/high-poly.mhclo",
+                format!("refers to body vertex {i} but the base mesh has {n}"),
+            ));
+        }
+        let eye_clear = eye_mesh
+            .faces
+            .iter()
+            .map(|face| {
+                let k = face.corners.len() as f32;
+                let uv = |t: u32| eye_mesh.uvs.get(t as usize).copied().unwrap_or([0.0, 0.0]);
+                let c = face.corners.iter().fold([0.0f32; 2], |a, &(_, t)| {
+                    [a[0] + uv(t)[0] / k, a[1] + uv(t)[1] / k]
+                });
+                eye_texture.channels == 4 && eye_texture.sample(c[0], c[1], 3) < 0.5
+            })
+            .collect();
+        let mut model = MakeHuman {
             base,
             targets: targets_set,
             face_units,
@@ -196,42 +228,60 @@ impl MakeHuman {
             eye_proxy,
             eye_texture,
             masks,
-            core_blake3: blake3::hash(&core_bytes).to_hex().to_string(),
-            targets_blake3: blake3::hash(&targets_bytes).to_hex().to_string(),
+            eye_clear,
+            face_uv: FaceUv::default(),
         };
-        model.check()?;
+        model.face_uv = FaceUv::find(&model.base).ok_or_else(|| {
+            model_error(
+                core,
+                "base.obj",
+                "no face landmarks (eyes, nose, cheeks) where hm08 has them",
+            )
+        })?;
         Ok(model)
     }
+}
 
-    /// Every target and proxy must address the base mesh.
-    fn check(&self) -> Result<(), IdentityError> {
-        let n = self.base.positions.len() as u32;
-        for (name, t) in self
-            .targets
-            .iter()
-            .chain(self.face_units.iter().map(|(n, t)| (n, t)))
-        {
-            if let Some(i) = t.indices.iter().find(|&&i| i >= n) {
-                return Err(IdentityError::Generate {
-                    identity: "-".into(),
-                    reason: format!("target {name} moves vertex {i} but the base mesh has {n}"),
-                });
-            }
-        }
-        for name in [
-            "body",
-            "helper-upper-teeth",
-            "helper-lower-teeth",
-            "helper-tongue",
-            "joint-head",
-        ] {
-            if self.base.group(name).is_none() {
-                return Err(IdentityError::Generate {
-                    identity: "-".into(),
-                    reason: format!("the base mesh has no group {name:?}: is it MakeHuman's hm08?"),
-                });
-            }
-        }
-        Ok(())
+/// The groups the bust and the landmarks are cut and measured by.
+const REQUIRED_GROUPS: [&str; 10] = [
+    "body",
+    "helper-upper-teeth",
+    "helper-lower-teeth",
+    "helper-tongue",
+    "helper-l-eye",
+    "helper-r-eye",
+    "joint-head",
+    "joint-spine-1",
+    "joint-l-clavicle",
+    "joint-l-shoulder",
+];
+
+fn check_base(base: &BaseMesh, path: &Path) -> Result<(), IdentityError> {
+    match REQUIRED_GROUPS.iter().find(|g| base.group(g).is_none()) {
+        Some(name) => Err(model_error(
+            path,
+            "groups",
+            format!("no group {name:?}: is it MakeHuman's hm08 base mesh?"),
+        )),
+        None => Ok(()),
     }
+}
+
+/// Every target must address the base mesh, so applying one cannot fail later.
+fn check_targets<'a>(
+    targets: impl Iterator<Item = (&'a String, &'a Target)>,
+    base: &BaseMesh,
+    path: &Path,
+) -> Result<(), IdentityError> {
+    let n = base.positions.len() as u32;
+    for (name, t) in targets {
+        if let Some(i) = t.indices.iter().find(|&&i| i >= n) {
+            return Err(model_error(
+                path,
+                name.as_str(),
+                format!("moves vertex {i} but the base mesh has {n}"),
+            ));
+        }
+    }
+    Ok(())
 }

@@ -44,6 +44,10 @@ pub type Targets = BTreeMap<String, Target>;
 /// Thousandths of a decimetre per int16 step in the compiled set.
 const NPZ_UNIT_DM: f32 = 1e-3;
 
+fn widen<T: Into<i64>>(v: Vec<T>) -> Vec<i64> {
+    v.into_iter().map(Into::into).collect()
+}
+
 /// Reads every target of a compiled `targets.npz` (the licence entry, a pickled object array,
 /// is skipped: nothing here unpickles).
 pub fn read_npz<R: Read + Seek>(reader: R, path: &Path) -> Result<Targets, IdentityError> {
@@ -63,27 +67,18 @@ pub fn read_npz<R: Read + Seek>(reader: R, path: &Path) -> Result<Targets, Ident
     }
     let mut out = Targets::new();
     for name in names {
-        let mut read = |suffix: &str| -> Result<(Vec<u64>, npyz::DType, Vec<i64>), IdentityError> {
+        let mut read = |suffix: &str| -> Result<(Vec<u64>, Vec<i64>), IdentityError> {
             let entry = format!("{name}.{suffix}");
             let file = npz
                 .by_name(&entry)
                 .map_err(|e| bad(&entry, e.to_string()))?
                 .ok_or_else(|| bad(&entry, "missing (every .index needs its .vector)".into()))?;
             let shape = file.shape().to_vec();
-            let dtype = file.dtype();
-            let values: Vec<i64> = match dtype.descr().trim_matches('\'') {
-                "<u2" => file
-                    .into_vec::<u16>()
-                    .map(|v| v.into_iter().map(i64::from).collect()),
-                "<i2" => file
-                    .into_vec::<i16>()
-                    .map(|v| v.into_iter().map(i64::from).collect()),
-                "<u4" => file
-                    .into_vec::<u32>()
-                    .map(|v| v.into_iter().map(i64::from).collect()),
-                "<i4" => file
-                    .into_vec::<i32>()
-                    .map(|v| v.into_iter().map(i64::from).collect()),
+            let values = match file.dtype().descr().trim_matches('\'') {
+                "<u2" => file.into_vec::<u16>().map(widen),
+                "<i2" => file.into_vec::<i16>().map(widen),
+                "<u4" => file.into_vec::<u32>().map(widen),
+                "<i4" => file.into_vec::<i32>().map(widen),
                 other => {
                     return Err(bad(
                         &entry,
@@ -92,10 +87,10 @@ pub fn read_npz<R: Read + Seek>(reader: R, path: &Path) -> Result<Targets, Ident
                 }
             }
             .map_err(|e| bad(&entry, e.to_string()))?;
-            Ok((shape, dtype, values))
+            Ok((shape, values))
         };
-        let (ishape, _, index) = read("index")?;
-        let (vshape, _, vector) = read("vector")?;
+        let (ishape, index) = read("index")?;
+        let (vshape, vector) = read("vector")?;
         let n = index.len();
         if ishape.len() != 1 || vshape != [n as u64, 3] {
             return Err(bad(

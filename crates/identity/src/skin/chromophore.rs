@@ -133,10 +133,9 @@
 
 use std::sync::LazyLock;
 
-#[path = "spectra.rs"]
-pub mod spectra;
-
-use spectra::{CIE_X, CIE_Y, CIE_Z, CMF_LEN, CMF_START_NM, CMF_STEP_NM, D65, HAEMOGLOBIN_EPSILON};
+use super::spectra::{
+    CIE_X, CIE_Y, CIE_Z, CMF_LEN, CMF_START_NM, CMF_STEP_NM, D65, HAEMOGLOBIN_EPSILON,
+};
 
 /// Number of wavelengths the model is evaluated at (380, 390, …, 780 nm).
 pub const N_WAVELENGTHS: usize = CMF_LEN;

@@ -14,7 +14,7 @@ use crate::makehuman::obj::BaseMesh;
 use crate::makehuman::MakeHuman;
 
 /// Landmark UVs (OBJ convention) on the base mesh, and the UV length of a centimetre.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FaceUv {
     pub cheeks: [[f32; 2]; 2],
     pub nose_tip: [f32; 2],
@@ -47,8 +47,7 @@ fn front_most(base: &BaseMesh, x: [f32; 2], y: [f32; 2]) -> Option<(u32, [f32; 2
 
 impl FaceUv {
     /// Finds the landmarks on the unshaped base mesh; `None` if it is not hm08-like.
-    pub fn find(model: &MakeHuman) -> Option<FaceUv> {
-        let base = &model.base;
+    pub fn find(base: &BaseMesh) -> Option<FaceUv> {
         let eye = |g: &str| {
             let idx = base.vertices_of(g);
             (!idx.is_empty()).then(|| {
@@ -138,7 +137,8 @@ struct Texel {
     height: f32,
 }
 
-fn texel(model: &MakeHuman, f: &FaceUv, look: &SkinLook, uv: [f32; 2]) -> Texel {
+fn texel(model: &MakeHuman, look: &SkinLook, uv: [f32; 2]) -> Texel {
+    let f = &model.face_uv;
     let m = &model.masks;
     let lips = m.lips.sample(uv[0], uv[1], 0);
     let lids = m.eyelids.sample(uv[0], uv[1], 0);
@@ -212,17 +212,21 @@ fn texel(model: &MakeHuman, f: &FaceUv, look: &SkinLook, uv: [f32; 2]) -> Texel 
     }
 }
 
+/// The person's albedo lookup, built once and shared by all of their textures.
+pub fn albedo_table(look: &SkinLook) -> AlbedoTable {
+    AlbedoTable::new(look.base.eumelanin_ratio, look.base.oxygenation, 48, 32)
+}
+
 /// Renders the four textures of the UV rectangle `rect` (OBJ UVs, [min, max]) at
-/// `width × height`, row 0 at the rect's top (max v).
+/// `width × height`, row 0 at the rect's top (max v); `table` is [`albedo_table`]`(look)`.
 pub fn skin_textures(
     model: &MakeHuman,
-    f: &FaceUv,
     look: &SkinLook,
+    table: &AlbedoTable,
     rect: [[f32; 2]; 2],
     width: u32,
     height: u32,
 ) -> SkinTextures {
-    let table = AlbedoTable::new(look.base.eumelanin_ratio, look.base.oxygenation, 48, 32);
     let n = (width * height) as usize;
     let mut albedo = vec![0u8; n * 4];
     let mut rough = vec![0u8; n * 4];
@@ -233,7 +237,7 @@ pub fn skin_textures(
         let v = v1 - (y as f32 + 0.5) / height as f32 * (v1 - v0);
         for x in 0..width {
             let u = u0 + (x as f32 + 0.5) / width as f32 * (u1 - u0);
-            let t = texel(model, f, look, [u, v]);
+            let t = texel(model, look, [u, v]);
             let rgb = table.albedo(
                 look.base.melanin * f64::from(t.melanin),
                 look.base.haemoglobin * f64::from(t.blood),

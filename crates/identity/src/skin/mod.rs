@@ -3,3 +3,4 @@
 pub mod chromophore;
 pub mod maps;
 pub mod noise;
+pub mod spectra;
