@@ -41,3 +41,35 @@ fn a_bust_is_built() {
         assert!(mesh.triangle_materials.contains(&slot), "slot {slot} empty");
     }
 }
+
+/// Vertices split only for their UVs or their texture (the head island's edge) are one point
+/// of the skin: they must share one normal, neutral and under every Face Unit, or the seams
+/// shade as creases.
+#[test]
+fn split_vertices_share_their_normal() {
+    let b = build(common::model(), &shape(3, 1.0)).unwrap();
+    let mut mesh = b.mesh.clone();
+    let check = |mesh: &lightfarm_render::scene::Mesh, what: &str| {
+        let mut by_source: std::collections::HashMap<u32, [f32; 3]> = Default::default();
+        let mut shared = 0;
+        for (s, n) in b.source.iter().zip(&mesh.normals) {
+            if let Some(m) = by_source.insert(*s, *n) {
+                shared += 1;
+                let d = (0..3).map(|k| (m[k] - n[k]).abs()).fold(0.0f32, f32::max);
+                assert!(
+                    d < 1e-5,
+                    "{what}: copies of vertex {s} have normals {m:?} and {n:?}"
+                );
+            }
+        }
+        assert!(shared > 100, "{what}: only {shared} split vertices");
+    };
+    check(&mesh, "neutral");
+    let smile: std::collections::BTreeMap<String, f64> = [
+        ("mouthSmileLeft".to_owned(), 1.0),
+        ("mouthSmileRight".to_owned(), 1.0),
+    ]
+    .into();
+    mesh.apply_morphs(&smile).unwrap();
+    check(&mesh, "smiling");
+}

@@ -162,6 +162,9 @@ pub struct Bust {
     pub origin_dm: [f32; 3],
     /// Every target weight that shaped it.
     pub weights: BTreeMap<String, f64>,
+    /// Per mesh vertex, the vertex it is a copy of: base-mesh numbers, eye-mesh vertex k as
+    /// `EYE_BASE + k`.
+    pub source: Vec<u32>,
 }
 
 struct Builder {
@@ -172,7 +175,7 @@ struct Builder {
     source: Vec<u32>,
 }
 
-const EYE_BASE: u32 = 1 << 24;
+pub const EYE_BASE: u32 = 1 << 24;
 
 impl Builder {
     fn vertex(&mut self, v: u32, t: u32, slot: u32, pos: [f32; 3], uv: [f32; 2]) -> u32 {
@@ -315,8 +318,19 @@ pub fn build(model: &MakeHuman, shape: &Shape) -> Result<Bust, String> {
     let Builder {
         mut mesh, source, ..
     } = b;
-    mesh.recompute_normals();
+    // Every copy of a base (or eye) vertex is welded to its first copy, as the normals of the
+    // unsplit base mesh would be.
+    let mut first: BTreeMap<u32, u32> = BTreeMap::new();
+    let weld: Vec<u32> = source
+        .iter()
+        .enumerate()
+        .map(|(i, &s)| *first.entry(s).or_insert(i as u32))
+        .collect();
+    mesh.recompute_normals_welded(&weld);
     mesh.recompute_tangents();
+    // Morphed normals are recomputed the same way and stored as deltas, since a mesh's own
+    // recomputation (for targets without them) does not know the weld.
+    let mut posed = mesh.clone();
 
     // Face Units: body vertices take the unit's offsets; eyes the refit of the moved body.
     for (name, unit) in &model.face_units {
@@ -324,7 +338,7 @@ pub fn build(model: &MakeHuman, shape: &Shape) -> Result<Bust, String> {
         unit.apply(&mut moved, 1.0)
             .map_err(|reason| format!("face unit {name}: {reason}"))?;
         let moved_eyes = model.eye_proxy.fit(&moved)?;
-        let deltas = source
+        let deltas: Vec<[f32; 3]> = source
             .iter()
             .map(|&s| {
                 let (a, b) = if s >= EYE_BASE {
@@ -336,15 +350,30 @@ pub fn build(model: &MakeHuman, shape: &Shape) -> Result<Bust, String> {
                 [0, 1, 2].map(|k| (b[k] - a[k]) * DM_TO_M)
             })
             .collect();
+        for (p, (q, d)) in posed
+            .positions
+            .iter_mut()
+            .zip(mesh.positions.iter().zip(&deltas))
+        {
+            *p = [q[0] + d[0], q[1] + d[1], q[2] + d[2]];
+        }
+        posed.recompute_normals_welded(&weld);
+        let normal_deltas = posed
+            .normals
+            .iter()
+            .zip(&mesh.normals)
+            .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
+            .collect();
         mesh.morph_targets.push(MorphTarget {
             name: name.clone(),
             position_deltas: deltas,
-            normal_deltas: vec![],
+            normal_deltas,
         });
     }
     Ok(Bust {
         mesh,
         origin_dm: origin,
         weights,
+        source,
     })
 }

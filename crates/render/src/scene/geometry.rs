@@ -9,7 +9,25 @@ const FALLBACK_NORMAL: [f32; 3] = [0.0, 0.0, 1.0];
 
 /// Area-weighted smooth normals: unnormalised face normals are proportional to area.
 pub(crate) fn smooth_normals(positions: &[[f32; 3]], indices: &[u32]) -> Vec<[f32; 3]> {
-    let mut acc = vec![Vec3::ZERO; positions.len()];
+    welded_normals(positions, indices, &[])
+}
+
+/// [`smooth_normals`] where vertex `i` accumulates into, and takes the normal of, vertex
+/// `weld[i]`: copies of one surface point split for their UVs or materials then share one
+/// normal. An empty `weld` (or an entry out of range) welds nothing.
+pub(crate) fn welded_normals(
+    positions: &[[f32; 3]],
+    indices: &[u32],
+    weld: &[u32],
+) -> Vec<[f32; 3]> {
+    let n = positions.len();
+    let rep = |i: usize| {
+        weld.get(i)
+            .map(|&r| r as usize)
+            .filter(|&r| r < n)
+            .unwrap_or(i)
+    };
+    let mut acc = vec![Vec3::ZERO; n];
     for tri in indices.chunks_exact(3) {
         let [a, b, c] = [tri[0] as usize, tri[1] as usize, tri[2] as usize];
         let (Some(pa), Some(pb), Some(pc)) = (positions.get(a), positions.get(b), positions.get(c))
@@ -20,11 +38,11 @@ pub(crate) fn smooth_normals(positions: &[[f32; 3]], indices: &[u32]) -> Vec<[f3
         let n = (pb - pa).cross(pc - pa);
         if n.is_finite() {
             for i in [a, b, c] {
-                acc[i] += n;
+                acc[rep(i)] += n;
             }
         }
     }
-    acc.into_iter().map(unit_or_fallback).collect()
+    (0..n).map(|i| unit_or_fallback(acc[rep(i)])).collect()
 }
 
 pub(crate) fn unit_or_fallback(n: Vec3) -> [f32; 3] {

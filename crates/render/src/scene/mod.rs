@@ -116,6 +116,13 @@ impl Mesh {
         self.normals = geometry::smooth_normals(&self.positions, &self.indices);
     }
 
+    /// [`Mesh::recompute_normals`] with vertex `i` welded to vertex `weld[i]` (one entry per
+    /// vertex): copies of a surface point split only for their UVs or materials get one normal,
+    /// so the split does not shade as a crease.
+    pub fn recompute_normals_welded(&mut self, weld: &[u32]) {
+        self.normals = geometry::welded_normals(&self.positions, &self.indices, weld);
+    }
+
     /// Replaces the tangents by ones derived from the UVs and normals (as for a glTF file
     /// without TANGENT), for meshes built in code.
     pub fn recompute_tangents(&mut self) {
