@@ -17,7 +17,7 @@ use crate::skin::chromophore::{
 };
 use crate::skin::maps::{albedo_table, skin_textures, SkinLook, CHEEK_BLOOD};
 
-/// Texture sizes: the head island (face and scalp, ~1100 texels across the face) and the
+/// Texture sizes: the head island (face and scalp: the face gets ~410 × 600 texels) and the
 /// atlas of the rest (neck, shoulders, ears).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TextureSize {

@@ -21,7 +21,7 @@ pub const SYNTHETIC: &str = "synthetic";
 
 /// Bumped whenever the same parameters would build a different person; samples record it and
 /// a worker refuses a record made by another version.
-pub const GENERATOR: &str = "makehuman-bust-1";
+pub const GENERATOR: &str = "makehuman-bust-2";
 
 /// Identity streams are keyed by (seed, k, stream), separate from the per-sample streams of
 /// `expand`, so every sample of identity k sees the same person.

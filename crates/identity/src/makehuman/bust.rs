@@ -37,7 +37,8 @@ pub const SLOT_TEETH: u32 = 4;
 pub const SLOT_TONGUE: u32 = 5;
 
 /// The head island of hm08's UV layout (face and scalp; OBJ convention), which gets a texture
-/// of its own so the face is sampled ~1000 texels across; the rest (neck, shoulders, ears)
+/// of its own (the face, ~14 × 20 cm, is about 0.11 × 0.17 of the UV square, so ~410 × 600
+/// texels at [`crate::person::TextureSize::FULL`]); the rest (neck, shoulders, ears)
 /// shares a coarser atlas.
 pub const HEAD_ISLAND: [[f32; 2]; 2] = [[0.635, 0.135], [0.985, 0.83]];
 

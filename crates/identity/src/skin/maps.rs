@@ -22,6 +22,8 @@ pub struct FaceUv {
     pub forehead: [f32; 2],
     pub upper_lip: [f32; 2],
     pub brows: [[f32; 2]; 2],
+    /// Below each eye, where periorbital darkening sits.
+    pub under_eyes: [[f32; 2]; 2],
     pub uv_per_cm: f32,
 }
 
@@ -70,6 +72,10 @@ impl FaceUv {
         let brow = |x: f32| front_most(base, [x - 0.08, x + 0.08], [ey + 0.12, ey + 0.22]);
         let (lc, rc) = (cheek(l[0])?.1, cheek(r[0])?.1);
         let (lb, rb) = (brow(l[0])?.1, brow(r[0])?.1);
+        // 1.2-2.2 cm under the eye centre: found on the mesh, since the face's vertical axis
+        // is not a UV axis in hm08's layout.
+        let under = |x: f32| front_most(base, [x - 0.05, x + 0.05], [ey - 0.22, ey - 0.12]);
+        let (lu, ru) = (under(l[0])?.1, under(r[0])?.1);
         // Eye distance: 2·half dm in space, the two brow UVs apart in the texture.
         let duv = ((lb[0] - rb[0]).powi(2) + (lb[1] - rb[1]).powi(2)).sqrt();
         let uv_per_cm = duv / (2.0 * half * 10.0);
@@ -80,6 +86,7 @@ impl FaceUv {
             forehead,
             upper_lip,
             brows: [lb, rb],
+            under_eyes: [lu, ru],
             uv_per_cm,
         })
     }
@@ -150,17 +157,9 @@ fn texel(model: &MakeHuman, look: &SkinLook, uv: [f32; 2]) -> Texel {
     let tzone = spot(uv, f.forehead, 3.0 * cm)
         .max(nose)
         .max(spot(uv, f.chin, 1.5 * cm));
-    let under_eye = lids
-        .max(spot(
-            uv,
-            [f.brows[0][0], f.brows[0][1] - 2.2 * cm],
-            0.9 * cm,
-        ))
-        .max(spot(
-            uv,
-            [f.brows[1][0], f.brows[1][1] - 2.2 * cm],
-            0.9 * cm,
-        ));
+    let under_eye =
+        lids.max(spot(uv, f.under_eyes[0], 0.9 * cm))
+            .max(spot(uv, f.under_eyes[1], 0.9 * cm));
     let s = look.seed;
     // Blotchiness on the scale of a centimetre, and pores at a third of a millimetre.
     let blotch = noise::fbm(uv[0] / cm, uv[1] / cm, s);
