@@ -2,7 +2,7 @@
 frontal spec (bench/people.toml) in a grid, and below them a row of the built-in heads under
 the same camera, each the lit0 tile of `lightfarm preview`.
 
-    python bench/people_figure.py --lightfarm $CARGO_TARGET_DIR/debug/lightfarm --size 192 --spp 64
+    python bench/people_figure.py --lightfarm $CARGO_TARGET_DIR/debug/lightfarm --size 512 --spp 8 --tile 192
 
 Runs `lightfarm preview` twice (synthetic and built-in heads) and crops the lit0 column out of
 its contact sheets (layout of crates/cli/src/sheet.rs: a 12 px title line, then per sample a
@@ -41,6 +41,7 @@ def main():
     ap.add_argument("--lightfarm", required=True)
     ap.add_argument("--size", type=int, default=192)
     ap.add_argument("--spp", type=int, default=64)
+    ap.add_argument("--tile", type=int, default=0, help="tile size on the sheet (default size/2)")
     ap.add_argument("--people", type=int, default=24)
     ap.add_argument("--scans", type=int, default=8, help="built-in head samples in the last row")
     ap.add_argument("--work", default="/tmp/lightfarm-people-figure")
@@ -59,7 +60,7 @@ def main():
     built_in = lit0_tiles(os.path.join(a.work, "scans.png"), a.scans, a.size)
     cols = 8
     rows = (len(people) + cols - 1) // cols
-    s = a.size // 2
+    s = a.tile or a.size // 2
     sheet = Image.new("RGB", (cols * s, (rows + 1) * s + 8), (24, 24, 24))
     for i, t in enumerate(people):
         sheet.paste(t.resize((s, s), Image.LANCZOS), ((i % cols) * s, (i // cols) * s))

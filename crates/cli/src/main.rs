@@ -2,6 +2,7 @@
 
 mod demo_cmd;
 mod farm_cmd;
+mod people_cmd;
 mod preview_cmd;
 mod render_cmd;
 mod sheet;
@@ -37,6 +38,9 @@ enum Command {
     /// Render a few samples of a dataset spec small and write a labelled contact sheet
     /// (lit0 | lit1 | albedo | normal | normal_lens | mask per sample).
     Preview(Box<preview_cmd::PreviewArgs>),
+    /// Synthetic people: check that consecutive identities generate, dress and render cleanly.
+    #[command(subcommand)]
+    People(people_cmd::PeopleCommand),
     /// The one-machine case: an in-process coordinator and worker render a small dataset from
     /// the built-in assets, export it and draw a contact sheet (out/demo/).
     Demo(Box<demo_cmd::DemoArgs>),
@@ -86,6 +90,7 @@ fn main() {
         Command::Spec(c) => spec_cmd::spec(c),
         Command::Assets(c) => spec_cmd::assets(c),
         Command::Preview(args) => preview_cmd::run(*args),
+        Command::People(c) => people_cmd::people(c),
         Command::Demo(a) => demo_cmd::run(*a),
         Command::Serve(c) => farm_cmd::serve(c),
         Command::Submit(a) => farm_cmd::submit(a),

@@ -2,6 +2,7 @@
 //! identity's parameters (sampled by `lightfarm_scene` from (seed, k)) and the model data.
 
 pub mod error;
+pub mod eyes;
 pub mod makehuman;
 pub mod person;
 pub mod skin;

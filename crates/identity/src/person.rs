@@ -2,13 +2,15 @@
 //! generated skin textures, ready for `lightfarm_subject::Head::from_scene`.
 
 use glam::Mat4;
-use lightfarm_render::scene::{Instance, Material, Scene, Texture};
+use lightfarm_render::scene::{Instance, Material, Scene};
 use lightfarm_scene::identity::{SyntheticIdentity, GENERATOR};
 use serde::Serialize;
 
 use crate::error::IdentityError;
+use crate::eyes::{eye_texture, EyeLook};
 use crate::makehuman::bust::{
-    self, Shape, HEAD_ISLAND, SLOT_BODY, SLOT_CORNEA, SLOT_EYES, SLOT_FACE, SLOT_TEETH, SLOT_TONGUE,
+    self, Shape, HEAD_ISLAND, SLOTS, SLOT_BODY, SLOT_CORNEA, SLOT_EYES, SLOT_FACE,
+    SLOT_FACE_CENTRE, SLOT_TEETH, SLOT_TONGUE,
 };
 use crate::makehuman::macros::{age_slider, Macros};
 use crate::makehuman::MakeHuman;
@@ -17,24 +19,31 @@ use crate::skin::chromophore::{
 };
 use crate::skin::maps::{albedo_table, skin_textures, SkinLook, CHEEK_BLOOD};
 
-/// Texture sizes: the head island (face and scalp: the face gets ~410 × 600 texels) and the
-/// atlas of the rest (neck, shoulders, ears).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Texture sizes: the face (brows to chin, temple to temple), the rest of the head island
+/// (scalp, forehead edge), the atlas of the rest (neck, shoulders, ears) and the eyeballs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct TextureSize {
+    pub face: u32,
     pub island: [u32; 2],
     pub atlas: u32,
+    pub eyes: u32,
 }
 
 impl TextureSize {
-    /// For 512² portraits.
+    /// For 512² portraits: the face fills ~1,450 × 1,370 of its 1,536² texels, several
+    /// texels per pixel of a 512² head-and-shoulders portrait.
     pub const FULL: TextureSize = TextureSize {
-        island: [1280, 2560],
+        face: 1536,
+        island: [1024, 2048],
         atlas: 1024,
+        eyes: 1024,
     };
     /// For tests and previews of a few dozen pixels.
     pub const SMALL: TextureSize = TextureSize {
+        face: 128,
         island: [160, 320],
         atlas: 128,
+        eyes: 128,
     };
 }
 
@@ -159,6 +168,13 @@ pub fn generate(
     };
     let face = add_skin(
         &mut scene,
+        "skin_face",
+        model.face_uv.face_rect,
+        size.face,
+        size.face,
+    );
+    let island = add_skin(
+        &mut scene,
         "skin",
         HEAD_ISLAND,
         size.island[0],
@@ -172,20 +188,21 @@ pub fn generate(
         size.atlas,
     );
     let eye_tex = scene.textures.len() as u32;
-    let e = &model.eye_texture;
-    let rgba8 = if e.channels == 4 {
-        e.data
-            .chunks_exact(4)
-            .flat_map(|p| [p[0], p[1], p[2], 255])
-            .collect()
-    } else {
-        e.data.iter().flat_map(|&g| [g, g, g, 255]).collect()
+    // Sclera vessels show more with age; how much is the person's own.
+    let age = ((id.age_years - 18.0) / 58.0).clamp(0.0, 1.0) as f32;
+    let eye_look = EyeLook {
+        iris_melanin: id.iris_melanin as f32,
+        vessels: 0.25
+            + 0.45 * age
+            + 0.3 * crate::skin::noise::lattice(13, 17, id.skin.texture_seed),
+        seed: id.skin.texture_seed ^ 0xE7E5,
     };
-    scene.textures.push(Texture {
-        width: e.width,
-        height: e.height,
-        rgba8,
-    });
+    scene.textures.push(eye_texture(
+        &model.eye_texture,
+        &model.irises,
+        &eye_look,
+        size.eyes,
+    ));
     let plain = |name: &str, rgb: [f32; 3], roughness: f32| Material {
         name: name.to_owned(),
         base_color: [rgb[0], rgb[1], rgb[2], 1.0],
@@ -194,8 +211,9 @@ pub fn generate(
         ..Material::default()
     };
     // Slot order of `bust::SLOT_*`.
-    let mut materials = vec![Material::default(); 6];
-    materials[SLOT_FACE as usize] = face;
+    let mut materials = vec![Material::default(); SLOTS];
+    materials[SLOT_FACE as usize] = island;
+    materials[SLOT_FACE_CENTRE as usize] = face;
     materials[SLOT_BODY as usize] = body;
     materials[SLOT_EYES as usize] = Material {
         base_color_texture: Some(eye_tex),

@@ -1,6 +1,8 @@
 mod common;
 
-use lightfarm_identity::makehuman::bust::{build, Shape, SLOT_CORNEA, SLOT_EYES, SLOT_FACE};
+use lightfarm_identity::makehuman::bust::{
+    build, Shape, SLOT_CORNEA, SLOT_EYES, SLOT_FACE, SLOT_FACE_CENTRE,
+};
 use lightfarm_identity::makehuman::macros::Macros;
 
 fn shape(seed: u64, gender: f64) -> Shape {
@@ -37,7 +39,7 @@ fn a_bust_is_built() {
     assert_eq!(mesh.morph_targets.len(), 52);
     assert!(mesh.positions.iter().flatten().all(|x| x.is_finite()));
     assert!(mesh.normals.iter().flatten().all(|x| x.is_finite()));
-    for slot in [SLOT_FACE, SLOT_EYES, SLOT_CORNEA] {
+    for slot in [SLOT_FACE, SLOT_FACE_CENTRE, SLOT_EYES, SLOT_CORNEA] {
         assert!(mesh.triangle_materials.contains(&slot), "slot {slot} empty");
     }
 }

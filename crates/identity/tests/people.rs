@@ -2,7 +2,7 @@
 
 mod common;
 
-use lightfarm_identity::makehuman::bust::{SLOT_EYES, SLOT_FACE};
+use lightfarm_identity::makehuman::bust::{SLOT_EYES, SLOT_FACE, SLOT_FACE_CENTRE};
 use lightfarm_identity::person::{chromophores, generate, TextureSize};
 use lightfarm_identity::skin::chromophore::{ita_deg, skin_category};
 use lightfarm_identity::skin::maps::{albedo_table, skin_textures, SkinLook};
@@ -160,7 +160,7 @@ fn hundreds_of_identities_generate_clean_meshes() {
             let slot = mesh.triangle_materials[t];
             for &v in tri {
                 let p = mesh.positions[v as usize];
-                if slot == SLOT_FACE {
+                if slot == SLOT_FACE || slot == SLOT_FACE_CENTRE {
                     for a in 0..3 {
                         lo[a] = lo[a].min(p[a]);
                         hi[a] = hi[a].max(p[a]);
@@ -191,4 +191,71 @@ fn hundreds_of_identities_generate_clean_meshes() {
             "identity {k}: head island {h} m tall"
         );
     }
+}
+
+/// Iris colour follows the person's iris melanin, which follows skin tone: blue and grey
+/// irises among light skin, brown among dark; the texture's iris shows the colour.
+#[test]
+fn iris_colour_follows_melanin() {
+    use lightfarm_identity::eyes::{eye_texture, iris_colour, EyeLook};
+    let spec = IdentitySpec::default();
+    let (mut light, mut light_blue, mut dark, mut dark_light_iris) = (0, 0, 0, 0);
+    for k in 0..500 {
+        let id = sample_identity(&spec, SEED, k);
+        assert!((0.0..=1.0).contains(&id.iris_melanin), "identity {k}");
+        if id.skin.category <= 2 {
+            light += 1;
+            light_blue += usize::from(id.iris_melanin < 0.25);
+        } else if id.skin.category >= 5 {
+            dark += 1;
+            dark_light_iris += usize::from(id.iris_melanin < 0.7);
+        }
+    }
+    assert!(
+        light_blue * 5 > light,
+        "{light_blue} of {light} light-skinned people have blue or grey eyes"
+    );
+    assert_eq!(dark_light_iris, 0, "of {dark} dark-skinned people");
+
+    let m = common::model();
+    let iris_mean = |melanin: f32| {
+        let tex = eye_texture(
+            &m.eye_texture,
+            &m.irises,
+            &EyeLook {
+                iris_melanin: melanin,
+                vessels: 0.5,
+                seed: 9,
+            },
+            256,
+        );
+        let scale = 256.0 / m.eye_texture.width as f32;
+        let mut sum = [0.0f64; 3];
+        let mut n = 0;
+        for iris in &m.irises {
+            let (cx, cy, r) = (
+                iris.centre[0] * scale,
+                iris.centre[1] * scale,
+                iris.radius * scale,
+            );
+            for y in 0..256 {
+                for x in 0..256 {
+                    let d = ((x as f32 + 0.5 - cx).powi(2) + (y as f32 + 0.5 - cy).powi(2)).sqrt();
+                    if (0.45 * r..0.8 * r).contains(&d) {
+                        let i = (y * 256 + x) * 4;
+                        for c in 0..3 {
+                            sum[c] += f64::from(tex.rgba8[i + c]);
+                        }
+                        n += 1;
+                    }
+                }
+            }
+        }
+        sum.map(|s| s / n as f64)
+    };
+    let blue = iris_mean(0.0);
+    let brown = iris_mean(1.0);
+    assert!(blue[2] > blue[0] + 20.0, "blue iris texels {blue:?}");
+    assert!(brown[0] > brown[2] + 10.0, "brown iris texels {brown:?}");
+    assert!(iris_colour(0.0)[2] > iris_colour(0.0)[0]);
 }

@@ -21,7 +21,7 @@ pub const SYNTHETIC: &str = "synthetic";
 
 /// Bumped whenever the same parameters would build a different person; samples record it and
 /// a worker refuses a record made by another version.
-pub const GENERATOR: &str = "makehuman-bust-2";
+pub const GENERATOR: &str = "makehuman-bust-3";
 
 /// Identity streams are keyed by (seed, k, stream), separate from the per-sample streams of
 /// `expand`, so every sample of identity k sees the same person.
@@ -116,6 +116,8 @@ pub struct SyntheticIdentity {
     /// Seed of the face-shape modifiers.
     pub shape_seed: u64,
     pub skin: SkinParams,
+    /// Stromal melanin of the iris: 0 blue, ~0.45 green-hazel, 1 dark brown.
+    pub iris_melanin: f64,
 }
 
 /// The identity name of synthetic person `id` (what splits and sample records use).
@@ -168,6 +170,12 @@ pub fn sample_identity(spec: &IdentitySpec, seed: u64, id: u64) -> SyntheticIden
     let freckle_scale = [1.0, 0.8, 0.45, 0.15, 0.0, 0.0][usize::from(category - 1)];
     let freckles = rng.uniform(spec.freckles[0], spec.freckles[1]) * freckle_scale;
     let texture_seed = rng.next_u64() >> 11;
+    // Iris colour follows skin tone: light irises occur almost only with light skin (the
+    // exponent skews light categories towards blue and grey, dark ones to brown).
+    let c = usize::from(category - 1);
+    let iris_floor = [0.0, 0.0, 0.2, 0.5, 0.7, 0.8][c];
+    let iris_skew = [2.0, 1.4, 1.0, 0.7, 0.5, 0.5][c];
+    let iris_melanin = iris_floor + (1.0 - iris_floor) * libm::pow(rng.next_f64(), iris_skew);
     SyntheticIdentity {
         generator: GENERATOR.to_owned(),
         id,
@@ -187,6 +195,7 @@ pub fn sample_identity(spec: &IdentitySpec, seed: u64, id: u64) -> SyntheticIden
             freckles,
             texture_seed,
         },
+        iris_melanin,
     }
 }
 

@@ -47,6 +47,9 @@ pub struct AssemblyStats {
     pub triangles: usize,
     /// Skin triangles removed because the garment covers them.
     pub hidden_skin_triangles: usize,
+    /// Skin vertices left outside the garment where it is worn (skin through cloth): 0 on a
+    /// good fit.
+    pub skin_through_garment: usize,
 }
 
 /// Resolves a sample's asset to its catalog entry and file, refusing a hash mismatch: a sample
@@ -185,8 +188,11 @@ fn triangles_of(scene: &Scene, transform: Mat4) -> Vec<[Vec3; 3]> {
 }
 
 /// Removes the head's skin triangles the garment covers; returns how many.
-fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> usize {
+/// Removes the skin the garment covers; returns (triangles removed, skin vertices still poking
+/// through the cloth).
+fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> (usize, usize) {
     let mut removed = 0;
+    let mut poking = 0;
     let skin: Vec<bool> = head
         .scene
         .materials
@@ -221,8 +227,68 @@ fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> usize 
                     .iter()
                     .all(|&v| covered.get(v as usize).copied().unwrap_or(false)))
         });
+        let mut visible = vec![false; world.len()];
+        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+            let material = mesh.triangle_materials.get(t).copied().unwrap_or(0);
+            if skin.get(material as usize).copied().unwrap_or(false) {
+                for &v in tri {
+                    if let Some(f) = visible.get_mut(v as usize) {
+                        *f = true;
+                    }
+                }
+            }
+        }
+        // Covered skin kept at the edge of the removed region (its triangle has an uncovered
+        // corner) would pierce the cloth: it moves to just inside it.
+        let to_mesh = transform.inverse();
+        for (v, p) in world.iter().enumerate() {
+            if !(visible[v] && covered[v]) {
+                continue;
+            }
+            if let Some(q) = cover.pull_inside(*p, 0.002) {
+                mesh.positions[v] = to_mesh.transform_point3(q).to_array();
+            }
+        }
+        let world: Vec<Vec3> = mesh
+            .positions
+            .iter()
+            .map(|p| transform.transform_point3(Vec3::from(*p)))
+            .collect();
+        // 5 mm: the cover map's bins are 1 cm by 5°.
+        poking += world
+            .iter()
+            .zip(&visible)
+            .filter(|(p, &vis)| vis && p.y < collar_y - 0.02 && cover.pokes_through(**p, 0.005))
+            .count();
     }
-    removed
+    (removed, poking)
+}
+
+/// The head's skin triangles in world space.
+fn skin_triangles(head: &Head) -> Vec<[Vec3; 3]> {
+    let scene = &head.scene;
+    let mut out = Vec::new();
+    for inst in &scene.instances {
+        let Some(mesh) = scene.meshes.get(inst.mesh as usize) else {
+            continue;
+        };
+        for (t, tri) in mesh.indices.chunks_exact(3).enumerate() {
+            let m = mesh.triangle_materials.get(t).copied().unwrap_or(0);
+            let is_skin = scene
+                .materials
+                .get(m as usize)
+                .is_some_and(|m| m.name.to_ascii_lowercase().contains("skin"));
+            let corner = |k: usize| {
+                mesh.positions
+                    .get(tri[k] as usize)
+                    .map(|p| inst.transform.transform_point3(Vec3::from(*p)))
+            };
+            if let (true, Some(a), Some(b), Some(c)) = (is_skin, corner(0), corner(1), corner(2)) {
+                out.push([a, b, c]);
+            }
+        }
+    }
+    out
 }
 
 /// Keeps the triangles of `mesh` for which `keep(material, indices)` holds (a triangle without
@@ -305,6 +371,21 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
             m.double_sided = true;
         }
         fit.warp_scene(&mut garment);
+        // A build the warp does not capture (a deep chest, a broad back) would leave skin
+        // through the cloth: the cloth moves out to clear the skin by 4 mm.
+        let skin = CoverMap::new(fit.body_axis(), &skin_triangles(&head));
+        for mesh in garment.meshes.iter_mut() {
+            let mut moved = false;
+            for p in mesh.positions.iter_mut() {
+                if let Some(q) = skin.push_outside(Vec3::from(*p), 0.004) {
+                    *p = q.to_array();
+                    moved = true;
+                }
+            }
+            if moved {
+                mesh.recompute_normals();
+            }
+        }
         let tris = triangles_of(&garment, Mat4::IDENTITY);
         let collar_y = tris
             .iter()
@@ -312,7 +393,8 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
             .map(|p| p.y)
             .fold(f32::NEG_INFINITY, f32::max);
         let cover = CoverMap::new(fit.body_axis(), &tris);
-        stats.hidden_skin_triangles = hide_covered_skin(&mut head, &cover, collar_y);
+        (stats.hidden_skin_triangles, stats.skin_through_garment) =
+            hide_covered_skin(&mut head, &cover, collar_y);
         append_scene(&mut parts, &garment, Mat4::IDENTITY);
     }
 

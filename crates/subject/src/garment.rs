@@ -263,11 +263,69 @@ impl CoverMap {
         (k < self.radius.len()).then_some(k)
     }
 
-    /// Whether cloth lies at `p`'s angle and height at least as far out as `p` minus `slack`
-    /// (so skin just outside a tight garment, which would poke through, counts as covered).
-    pub fn covers(&self, p: Vec3, slack: f32) -> bool {
+    /// The largest radius of cloth at `p`'s angle and height, if there is cloth there.
+    pub fn cloth_radius(&self, p: Vec3) -> Option<f32> {
         self.bin(p)
             .and_then(|k| self.radius.get(k))
-            .is_some_and(|&r| r > 0.0 && r + slack >= self.radial(p))
+            .copied()
+            .filter(|&r| r > 0.0)
+    }
+
+    /// Whether cloth lies at `p`'s angle and height at least as far out as `p` minus `slack`
+    /// (so skin just outside a tight garment, which would poke through, counts as covered),
+    /// and the bin above has cloth too: the top row of a collar covers only part of its bin,
+    /// and skin removed there shows as dark gaps above the cloth's edge.
+    pub fn covers(&self, p: Vec3, slack: f32) -> bool {
+        self.cloth_radius(p)
+            .is_some_and(|r| r + slack >= self.radial(p))
+            && self.cloth_radius(p + Vec3::Y * HEIGHT_BIN_M).is_some()
+    }
+
+    /// The largest radius in `p`'s bin and the bins beside it (the angle neighbours), so a
+    /// surface pushed out by it clears the whole bin.
+    fn radius_near(&self, p: Vec3) -> Option<f32> {
+        let k = self.bin(p)?;
+        let row = k / ANGLE_BINS;
+        let col = k % ANGLE_BINS;
+        let r = [ANGLE_BINS - 1, 0, 1]
+            .iter()
+            .filter_map(|d| self.radius.get(row * ANGLE_BINS + (col + d) % ANGLE_BINS))
+            .fold(0.0f32, |a, &b| a.max(b));
+        (r > 0.0).then_some(r)
+    }
+
+    /// `p` (cloth) moved away from the body axis to `gap` outside this map's surface (skin),
+    /// if it lies inside that.
+    pub fn push_outside(&self, p: Vec3, gap: f32) -> Option<Vec3> {
+        let r = self.radius_near(p)? + gap;
+        let len = self.radial(p);
+        if len >= r || len < 1e-4 {
+            return None;
+        }
+        let d = p - self.axis;
+        let k = r / len;
+        Some(Vec3::new(self.axis.x + d.x * k, p.y, self.axis.z + d.z * k))
+    }
+
+    /// `p` moved towards the body axis to `gap` inside the cloth at its angle and height, if
+    /// it lies outside that.
+    pub fn pull_inside(&self, p: Vec3, gap: f32) -> Option<Vec3> {
+        let r = self.cloth_radius(p)? - gap;
+        let len = self.radial(p);
+        if len <= r || r <= 0.0 {
+            return None;
+        }
+        let d = p - self.axis;
+        let k = r / len;
+        Some(Vec3::new(self.axis.x + d.x * k, p.y, self.axis.z + d.z * k))
+    }
+
+    /// Whether skin at `p` would show through the cloth: cloth at its angle and height, and
+    /// at the height above, lies more than `tolerance` inside it.
+    pub fn pokes_through(&self, p: Vec3, tolerance: f32) -> bool {
+        self.cloth_radius(p + Vec3::Y * HEIGHT_BIN_M).is_some()
+            && self
+                .cloth_radius(p)
+                .is_some_and(|r| self.radial(p) > r + tolerance)
     }
 }

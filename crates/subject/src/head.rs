@@ -27,7 +27,7 @@ fn head_material(name: &str) -> Option<(Option<MaterialModel>, ObjectClass)> {
     use MaterialModel as M;
     use ObjectClass as C;
     Some(match name {
-        "skin" | "skin_body" | "leeperrysmith_skin" => (Some(M::Skin), C::Skin),
+        "skin" | "skin_face" | "skin_body" | "leeperrysmith_skin" => (Some(M::Skin), C::Skin),
         "eyes" | "sclera" | "iris" => (Some(M::Eye), C::Eyes),
         "cornea" => (Some(M::Cornea), C::Eyes),
         "teeth" => (Some(M::Teeth), C::Mouth),

@@ -20,6 +20,7 @@ pub mod head;
 pub mod headset;
 pub mod landmarks;
 pub mod render;
+pub mod sanity;
 pub mod synthetic;
 
 pub use assemble::{assemble, Assembled, AssemblyStats};

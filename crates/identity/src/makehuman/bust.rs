@@ -35,11 +35,15 @@ pub const SLOT_EYES: u32 = 2;
 pub const SLOT_CORNEA: u32 = 3;
 pub const SLOT_TEETH: u32 = 4;
 pub const SLOT_TONGUE: u32 = 5;
+/// The face proper (brows to chin, temple to temple; [`crate::skin::maps::FaceUv::face_rect`]),
+/// cut out of the head island so it gets a finer texture than the scalp.
+pub const SLOT_FACE_CENTRE: u32 = 6;
+/// How many slots a bust has.
+pub const SLOTS: usize = 7;
 
 /// The head island of hm08's UV layout (face and scalp; OBJ convention), which gets a texture
-/// of its own (the face, ~14 × 20 cm, is about 0.11 × 0.17 of the UV square, so ~410 × 600
-/// texels at [`crate::person::TextureSize::FULL`]); the rest (neck, shoulders, ears)
-/// shares a coarser atlas.
+/// of its own; the face inside it gets a finer one ([`SLOT_FACE_CENTRE`]), and the rest
+/// (neck, shoulders, ears) shares a coarser atlas.
 pub const HEAD_ISLAND: [[f32; 2]; 2] = [[0.635, 0.135], [0.985, 0.83]];
 
 /// How a person's shape is drawn.
@@ -154,7 +158,7 @@ fn centroid(v: &[[f32; 3]], idx: &[u32]) -> [f32; 3] {
     c.map(|x| (x / idx.len().max(1) as f64) as f32)
 }
 
-/// A bust mesh before materials: six slots (`SLOT_*`), UVs of the face slot already in the
+/// A bust mesh before materials: [`SLOTS`] slots (`SLOT_*`), UVs of the head slots already in their
 /// head-island texture's frame, glTF V (row 0 at the top).
 #[derive(Clone, Debug)]
 pub struct Bust {
@@ -208,14 +212,23 @@ impl Builder {
 }
 
 fn in_island(uv: [f32; 2]) -> bool {
-    let [[u0, v0], [u1, v1]] = HEAD_ISLAND;
-    (u0..=u1).contains(&uv[0]) && (v0..=v1).contains(&uv[1])
+    in_rect(uv, HEAD_ISLAND)
 }
 
 /// Maps an OBJ UV inside [`HEAD_ISLAND`] to the island texture's glTF UV.
 pub fn island_uv(uv: [f32; 2]) -> [f32; 2] {
-    let [[u0, v0], [u1, v1]] = HEAD_ISLAND;
+    rect_uv(uv, HEAD_ISLAND)
+}
+
+/// Maps an OBJ UV inside `rect` to that rectangle's texture (glTF UV).
+pub fn rect_uv(uv: [f32; 2], rect: [[f32; 2]; 2]) -> [f32; 2] {
+    let [[u0, v0], [u1, v1]] = rect;
     [(uv[0] - u0) / (u1 - u0), 1.0 - (uv[1] - v0) / (v1 - v0)]
+}
+
+fn in_rect(uv: [f32; 2], rect: [[f32; 2]; 2]) -> bool {
+    let [[u0, v0], [u1, v1]] = rect;
+    (u0..=u1).contains(&uv[0]) && (v0..=v1).contains(&uv[1])
 }
 
 /// Builds the bust of `shape`. An error is a reason naming the target, joint or proxy at fault
@@ -263,8 +276,21 @@ pub fn build(model: &MakeHuman, shape: &Shape) -> Result<Bust, String> {
         }) {
             continue;
         }
+        let face_rect = model.face_uv.face_rect;
+        let centre = face
+            .corners
+            .iter()
+            .all(|&(_, t)| in_rect(uv_of(t), face_rect));
         let island = face.corners.iter().all(|&(_, t)| in_island(uv_of(t)));
-        if island {
+        if centre {
+            b.face(
+                face,
+                SLOT_FACE_CENTRE,
+                &body_pos,
+                &|t| rect_uv(uv_of(t), face_rect),
+                0,
+            );
+        } else if island {
             b.face(face, SLOT_FACE, &body_pos, &|t| island_uv(uv_of(t)), 0);
         } else {
             b.face(

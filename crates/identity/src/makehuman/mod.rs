@@ -16,6 +16,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use crate::error::{model_error, IdentityError};
+use crate::eyes::{find_irises, Iris};
 use crate::skin::maps::FaceUv;
 use obj::BaseMesh;
 use proxy::Proxy;
@@ -73,6 +74,8 @@ pub struct MakeHuman {
     pub eye_clear: Vec<bool>,
     /// Skin landmarks in the UV layout, the same for every person.
     pub face_uv: FaceUv,
+    /// The two irises of `eye_texture`, which each person's iris colour replaces.
+    pub irises: [Iris; 2],
 }
 
 /// Where the two files are looked for by default, relative to the asset pack.
@@ -220,6 +223,13 @@ impl MakeHuman {
                 eye_texture.channels == 4 && eye_texture.sample(c[0], c[1], 3) < 0.5
             })
             .collect();
+        let irises = find_irises(&eye_texture).ok_or_else(|| {
+            model_error(
+                core,
+                "eyes/brown_eye.png",
+                "no two irises (saturated discs) found in the eye texture",
+            )
+        })?;
         let mut model = MakeHuman {
             base,
             targets: targets_set,
@@ -230,6 +240,7 @@ impl MakeHuman {
             masks,
             eye_clear,
             face_uv: FaceUv::default(),
+            irises,
         };
         model.face_uv = FaceUv::find(&model.base).ok_or_else(|| {
             model_error(

@@ -10,6 +10,7 @@ use lightfarm_render::scene::Texture;
 
 use super::chromophore::{AlbedoTable, Chromophores};
 use super::noise;
+use crate::makehuman::bust::HEAD_ISLAND;
 use crate::makehuman::obj::BaseMesh;
 use crate::makehuman::MakeHuman;
 
@@ -25,6 +26,9 @@ pub struct FaceUv {
     /// Below each eye, where periorbital darkening sits.
     pub under_eyes: [[f32; 2]; 2],
     pub uv_per_cm: f32,
+    /// The face (brows to below the chin, temple to temple) inside the head island: a UV
+    /// rectangle ([min, max]) that gets a texture of its own at higher resolution.
+    pub face_rect: [[f32; 2]; 2],
 }
 
 /// The body vertex with the largest z in a box (x, y ranges in decimetres), and its UV.
@@ -45,6 +49,52 @@ fn front_most(base: &BaseMesh, x: [f32; 2], y: [f32; 2]) -> Option<(u32, [f32; 2
         }
     }
     best.map(|(_, v, t)| (v, base.uvs[t as usize]))
+}
+
+/// Padding of the face rectangle, in UV units: triangles at its edge stay inside it.
+const FACE_RECT_PAD: f32 = 0.004;
+
+/// The UV bounds of the head-island faces in front of the ears, from 14.5 cm below the eyes to
+/// 7.5 cm above them (decimetres, around the eyes' midpoint `eyes`).
+fn face_rect(base: &BaseMesh, eyes: [f32; 3]) -> Option<[[f32; 2]; 2]> {
+    let body = base.group("body")?;
+    let [[iu0, iv0], [iu1, iv1]] = HEAD_ISLAND;
+    let (mut lo, mut hi) = ([f32::MAX; 2], [f32::MIN; 2]);
+    for f in base.faces.iter().filter(|f| f.group == body) {
+        let uv = |t: u32| base.uvs.get(t as usize).copied();
+        let inside = f.corners.iter().all(|&(v, t)| {
+            let p = base.positions[v as usize];
+            let in_island =
+                uv(t).is_some_and(|[u, w]| (iu0..=iu1).contains(&u) && (iv0..=iv1).contains(&w));
+            in_island
+                && p[1] > eyes[1] - 1.45
+                && p[1] < eyes[1] + 0.75
+                && (p[0] - eyes[0]).abs() < 0.75
+                && p[2] > eyes[2] - 0.35
+        });
+        if !inside {
+            continue;
+        }
+        for &(_, t) in &f.corners {
+            let c = uv(t)?;
+            for k in 0..2 {
+                lo[k] = lo[k].min(c[k]);
+                hi[k] = hi[k].max(c[k]);
+            }
+        }
+    }
+    (lo[0] < hi[0] && lo[1] < hi[1]).then(|| {
+        [
+            [
+                (lo[0] - FACE_RECT_PAD).max(iu0),
+                (lo[1] - FACE_RECT_PAD).max(iv0),
+            ],
+            [
+                (hi[0] + FACE_RECT_PAD).min(iu1),
+                (hi[1] + FACE_RECT_PAD).min(iv1),
+            ],
+        ]
+    })
 }
 
 impl FaceUv {
@@ -79,6 +129,7 @@ impl FaceUv {
         // Eye distance: 2·half dm in space, the two brow UVs apart in the texture.
         let duv = ((lb[0] - rb[0]).powi(2) + (lb[1] - rb[1]).powi(2)).sqrt();
         let uv_per_cm = duv / (2.0 * half * 10.0);
+        let face_rect = face_rect(base, [0.5 * (l[0] + r[0]), ey, 0.5 * (l[2] + r[2])])?;
         Some(FaceUv {
             cheeks: [lc, rc],
             nose_tip,
@@ -88,6 +139,7 @@ impl FaceUv {
             brows: [lb, rb],
             under_eyes: [lu, ru],
             uv_per_cm,
+            face_rect,
         })
     }
 }
@@ -129,7 +181,7 @@ fn srgb8(linear: f64) -> u8 {
     let s = if x <= 0.003_130_8 {
         12.92 * x
     } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
+        1.055 * libm::pow(x, 1.0 / 2.4) - 0.055
     };
     (s * 255.0 + 0.5) as u8
 }
