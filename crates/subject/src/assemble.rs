@@ -211,7 +211,7 @@ fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> (usize
         let Some(mesh) = head.scene.meshes.get_mut(mesh_index as usize) else {
             continue;
         };
-        let world: Vec<Vec3> = mesh
+        let mut world: Vec<Vec3> = mesh
             .positions
             .iter()
             .map(|p| transform.transform_point3(Vec3::from(*p)))
@@ -241,19 +241,15 @@ fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> (usize
         // Covered skin kept at the edge of the removed region (its triangle has an uncovered
         // corner) would pierce the cloth: it moves to just inside it.
         let to_mesh = transform.inverse();
-        for (v, p) in world.iter().enumerate() {
+        for (v, p) in world.iter_mut().enumerate() {
             if !(visible[v] && covered[v]) {
                 continue;
             }
             if let Some(q) = cover.pull_inside(*p, 0.002) {
                 mesh.positions[v] = to_mesh.transform_point3(q).to_array();
+                *p = q;
             }
         }
-        let world: Vec<Vec3> = mesh
-            .positions
-            .iter()
-            .map(|p| transform.transform_point3(Vec3::from(*p)))
-            .collect();
         // 5 mm: the cover map's bins are 1 cm by 5°.
         poking += world
             .iter()
