@@ -131,7 +131,7 @@ fn skin_tones_cover_the_six_categories_in_proportion() {
 }
 
 /// A few hundred consecutive identities: finite meshes, both eyes inside the head, the face
-/// textured. (`scripts/identities-1000.sh` runs 1,000 with renders.)
+/// textured. (`lightfarm people check --count 1000` dresses and renders 1,000.)
 #[test]
 fn hundreds_of_identities_generate_clean_meshes() {
     let m = common::model();

@@ -14,8 +14,24 @@ height = 16
 spp = 1
 "#;
 
+/// The coordinator's sled settings (no background flusher). A restart in the same process can
+/// still find the file lock held for a moment by sled's I/O threads of the dropped instance
+/// (a restarted coordinator is a new process, whose lock the dead one no longer holds), so the
+/// open is retried for a few seconds before failing.
 fn open(dir: &std::path::Path) -> (sled::Db, Scheduler) {
-    let db = sled::Config::new().path(dir).open().expect("sled");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    let db = loop {
+        match sled::Config::new().path(dir).flush_every_ms(None).open() {
+            Ok(db) => break db,
+            Err(sled::Error::Io(e))
+                if e.to_string().contains("could not acquire lock")
+                    && std::time::Instant::now() < deadline =>
+            {
+                std::thread::sleep(std::time::Duration::from_millis(50));
+            }
+            Err(e) => panic!("sled at {}: {e}", dir.display()),
+        }
+    };
     let catalog = Catalog::builtin().expect("catalog");
     let samples = SampleIndex::open(&db).expect("index");
     let s = Scheduler::open(&db, catalog, samples, 30.0).expect("scheduler");
