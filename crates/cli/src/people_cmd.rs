@@ -13,10 +13,13 @@ use indicatif::{ProgressBar, ProgressStyle};
 use lightfarm_render::vulkan::DeviceRequest;
 use lightfarm_render::Renderer;
 use lightfarm_scene::expand::expand;
+use lightfarm_scene::expand::SampleSpec;
 use lightfarm_scene::identity::{identity_name, sample_identity};
 use lightfarm_scene::spec::DatasetSpec;
 use lightfarm_subject::render::render_sample;
 use lightfarm_subject::sanity::check_assembly;
+
+use crate::sheet::{tiles, Sheet};
 
 #[derive(Subcommand, Debug)]
 pub enum PeopleCommand {
@@ -48,6 +51,12 @@ pub struct CheckArgs {
     catalog: Option<PathBuf>,
     #[arg(long, env = "LIGHTFARM_DEVICE", default_value = "auto")]
     device: String,
+    /// Also draw the people that failed as a contact sheet (PNG; one row each, the problem as
+    /// its caption), rendered again at --sheet-size.
+    #[arg(long)]
+    sheet: Option<PathBuf>,
+    #[arg(long, default_value_t = 192)]
+    sheet_size: u32,
 }
 
 const DEFAULT_SPEC: &str = "name = \"people-check\"\nseed = 1\ncount = 1000\n\
@@ -113,23 +122,36 @@ fn check(args: CheckArgs) -> Result<()> {
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    if let Some(p) = &args.sheet {
+        crate::render_cmd::ensure_parent(p, "--sheet")?;
+        if !(16..=1024).contains(&args.sheet_size) {
+            bail!(
+                "--sheet-size {} must be in 16..=1024 pixels",
+                args.sheet_size
+            );
+        }
+    }
+    // Sample k's camera, lighting and dressing, with identity k in it.
+    let person_sample = |k: u64, size: u32, spp: u32| -> Result<SampleSpec> {
+        let mut sample = expand(&spec, k % spec.count)?;
+        sample.head.id = lightfarm_scene::identity::SYNTHETIC.to_owned();
+        sample.head.blake3.clear();
+        sample.identity = identity_name(k);
+        sample.head.synthetic = Some(lightfarm_scene::expand::SyntheticHead {
+            identity: sample_identity(&people.spec, spec.seed, k),
+            models: people.models.iter().map(Into::into).collect(),
+        });
+        sample.render.width = size.max(1);
+        sample.render.height = size.max(1);
+        sample.render.spp = spp;
+        Ok(sample)
+    };
     let started = Instant::now();
     let (mut failed, mut assemble_s, mut render_s) = (Vec::new(), 0.0, 0.0);
     for k in args.start..args.start + args.count {
         let name = identity_name(k);
         bar.set_message(name.clone());
-        // Sample k's camera, lighting and dressing, with identity k in it.
-        let mut sample = expand(&spec, k % spec.count)?;
-        sample.head.id = lightfarm_scene::identity::SYNTHETIC.to_owned();
-        sample.head.blake3.clear();
-        sample.identity = name.clone();
-        sample.head.synthetic = Some(lightfarm_scene::expand::SyntheticHead {
-            identity: sample_identity(&people.spec, spec.seed, k),
-            models: people.models.iter().map(Into::into).collect(),
-        });
-        sample.render.width = args.size.max(1);
-        sample.render.height = args.size.max(1);
-        sample.render.spp = args.spp;
+        let sample = person_sample(k, args.size, args.spp)?;
         let t = Instant::now();
         let mut problems = Vec::new();
         let mut stats = None;
@@ -161,7 +183,7 @@ fn check(args: CheckArgs) -> Result<()> {
         }
         if !problems.is_empty() {
             bar.suspend(|| eprintln!("{name}: {}", problems.join("; ")));
-            failed.push(name);
+            failed.push((k, name, problems.join("; ")));
         }
         bar.inc(1);
     }
@@ -184,12 +206,51 @@ fn check(args: CheckArgs) -> Result<()> {
         },
         started.elapsed().as_secs_f64()
     );
+    if let (Some(path), false) = (&args.sheet, failed.is_empty()) {
+        let renderer = match renderer {
+            Some(r) => r,
+            None => Renderer::new(&args.device.parse().context("--device")?)?,
+        };
+        failure_sheet(&renderer, &catalog, &failed, path, args.sheet_size, |k| {
+            person_sample(k, args.sheet_size, 16)
+        })?;
+    }
     if !failed.is_empty() {
+        let names: Vec<&str> = failed.iter().map(|f| f.1.as_str()).collect();
         bail!(
             "{} people failed the checks: {}",
             failed.len(),
-            failed.join(", ")
+            names.join(", ")
         );
     }
+    Ok(())
+}
+
+/// The failed people of a run as a contact sheet, each rendered again at `size`² × 16 spp
+/// with its problems as the row's caption.
+fn failure_sheet(
+    renderer: &Renderer,
+    catalog: &lightfarm_scene::Catalog,
+    failed: &[(u64, String, String)],
+    path: &std::path::Path,
+    size: u32,
+    sample_of: impl Fn(u64) -> Result<SampleSpec>,
+) -> Result<()> {
+    let mut sheet = Sheet::new(failed.len() as u32, size, size);
+    for (row, (k, name, problems)) in failed.iter().enumerate() {
+        let caption = format!("{name}: {problems}");
+        let out = lightfarm_subject::assemble(&sample_of(*k)?, catalog)
+            .map_err(anyhow::Error::from)
+            .and_then(|a| render_sample(renderer, &a, &mut |_| {}).map_err(Into::into));
+        match out {
+            Ok(out) => sheet.row(row as u32, &caption, &tiles(&out)),
+            Err(e) => sheet.failed_row(row as u32, &format!("{caption}; {e}")),
+        }
+    }
+    let img = image::RgbImage::from_raw(sheet.width, sheet.height, sheet.pixels)
+        .context("contact sheet buffer has the wrong size")?;
+    img.save_with_format(path, image::ImageFormat::Png)
+        .with_context(|| format!("--sheet {}", path.display()))?;
+    eprintln!("{}: {} people that failed", path.display(), failed.len());
     Ok(())
 }

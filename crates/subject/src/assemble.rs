@@ -251,11 +251,20 @@ fn hide_covered_skin(head: &mut Head, cover: &CoverMap, collar_y: f32) -> (usize
             }
         }
         // 5 mm: the cover map's bins are 1 cm by 5°.
-        poking += world
-            .iter()
-            .zip(&visible)
-            .filter(|(p, &vis)| vis && p.y < collar_y - 0.02 && cover.pokes_through(**p, 0.005))
-            .count();
+        for (v, p) in world.iter().enumerate() {
+            if visible[v] && p.y < collar_y - 0.02 && cover.pokes_through(*p, 0.005) {
+                poking += 1;
+                tracing::debug!(
+                    vertex = v,
+                    mesh = mesh.name.as_str(),
+                    position = ?p,
+                    below_collar_m = collar_y - p.y,
+                    outside_cloth_m = cover.outside_by(*p),
+                    covered = covered[v],
+                    "skin through the garment"
+                );
+            }
+        }
     }
     (removed, poking)
 }
@@ -347,7 +356,16 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
         let mut garment = load_scene(&path, asset)?;
         let (fitted, fitted_eyes) = garment_fitted_body(catalog, asset)?;
         let fit = match Body::measure(&head.surface, &lm) {
-            Some(target) => GarmentFit::new(&fitted, &target),
+            Some(target) => {
+                tracing::debug!(
+                    neck = ?target.neck.centre,
+                    neck_half_width_m = target.neck.half_width,
+                    shoulder_half_width_m = target.shoulder_half_width,
+                    eyes = ?lm.eye_centre(),
+                    "garment fit: the body measured"
+                );
+                GarmentFit::new(&fitted, &target)
+            }
             // ICT FaceKit meshes stop at the throat: no neck to measure.
             None => GarmentFit::by_eyes(&fitted, fitted_eyes, lm.eye_centre()),
         };

@@ -31,6 +31,9 @@ const SHOULDER_SEARCH_M: [f32; 2] = [0.06, 0.25];
 /// The shoulder line is where the body first gets wider than this (half-width) going down:
 /// wider than any neck, narrower than any pair of shoulders.
 const SHOULDER_START_HALF_WIDTH_M: f32 = 0.09;
+/// Shoulders are wider than the neck above them by at least this factor (a neck's half-width
+/// is 4.5-7.5 cm, the shoulders' 15-20 cm).
+const SHOULDER_OVER_NECK: f32 = 1.25;
 /// The collar reference is this far above the shoulder line.
 const NECK_ABOVE_SHOULDERS_M: f32 = 0.02;
 /// Shoulders are measured this far below the shoulder line.
@@ -49,15 +52,27 @@ fn slab(surface: &HeadSurface, y: f32) -> (Vec3, Vec3, usize) {
     (lo, hi, n)
 }
 
-/// The height where the neck meets the shoulders, `None` when the mesh stops above them.
+/// The height where the neck meets the shoulders, `None` when the mesh stops above them:
+/// going down, the first slab wider than [`SHOULDER_START_HALF_WIDTH_M`] and than
+/// [`SHOULDER_OVER_NECK`] × the narrowest slab above it. The second condition skips a broad
+/// jaw or full cheeks at the top of the search (a heavy face can be 19 cm wide 6 cm under the
+/// eyes; taking that for the shoulders put the collar at the mouth).
 pub fn shoulder_line(surface: &HeadSurface, lm: &Landmarks) -> Option<f32> {
     let eye_y = lm.eye_centre().y;
     let steps = ((SHOULDER_SEARCH_M[1] - SHOULDER_SEARCH_M[0]) / 0.005) as usize;
+    let mut narrowest = f32::INFINITY;
     (0..=steps)
         .map(|k| eye_y - SHOULDER_SEARCH_M[0] - k as f32 * 0.005)
         .find(|&y| {
             let (lo, hi, n) = slab(surface, y);
-            n >= 8 && (hi.x - lo.x) * 0.5 > SHOULDER_START_HALF_WIDTH_M
+            if n < 8 {
+                return false;
+            }
+            let half_width = (hi.x - lo.x) * 0.5;
+            let found = half_width > SHOULDER_START_HALF_WIDTH_M
+                && half_width > SHOULDER_OVER_NECK * narrowest;
+            narrowest = narrowest.min(half_width);
+            found
         })
 }
 
@@ -320,6 +335,12 @@ impl CoverMap {
         Some(Vec3::new(self.axis.x + d.x * k, p.y, self.axis.z + d.z * k))
     }
 
+    /// How far `p` lies outside the cloth at its angle and height (negative inside), if there
+    /// is cloth there.
+    pub fn outside_by(&self, p: Vec3) -> Option<f32> {
+        self.cloth_radius(p).map(|r| self.radial(p) - r)
+    }
+
     /// Whether skin at `p` would show through the cloth: cloth at its angle and height, and
     /// at the height above, lies more than `tolerance` inside it.
     pub fn pokes_through(&self, p: Vec3, tolerance: f32) -> bool {
@@ -327,5 +348,59 @@ impl CoverMap {
             && self
                 .cloth_radius(p)
                 .is_some_and(|r| self.radial(p) > r + tolerance)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A body as rings of 16 points every 5 mm from 6 cm to 25 cm under the eyes, with the
+    /// half-width `width(depth below the eyes)`.
+    fn body(width: impl Fn(f32) -> f32) -> (HeadSurface, Landmarks) {
+        let mut positions = Vec::new();
+        for k in 0..=38 {
+            let depth = 0.06 + k as f32 * 0.005;
+            let w = width(depth);
+            for a in 0..16 {
+                let t = a as f32 / 16.0 * std::f32::consts::TAU;
+                positions.push(Vec3::new(w * t.cos(), -depth, 0.06 * t.sin()));
+            }
+        }
+        let surface = HeadSurface {
+            normals: vec![Vec3::Z; positions.len()],
+            positions,
+            triangles: Vec::new(),
+        };
+        let eye = Vec3::new(0.0, 0.0, 0.08);
+        let lm = Landmarks {
+            eye_left: eye + Vec3::X * 0.03,
+            eye_right: eye - Vec3::X * 0.03,
+            ear_left: Vec3::X * 0.07,
+            ear_right: -Vec3::X * 0.07,
+            nose_bridge: eye + Vec3::Z * 0.02,
+            crown: Vec3::Y * 0.12,
+        };
+        (surface, lm)
+    }
+
+    /// Shoulders start 15 cm under the eyes; above them a 6 cm neck, and for the second body a
+    /// jaw 9.3 cm wide at the top of the search (identity 622 of `lightfarm people check`,
+    /// whose collar the old rule put at the mouth).
+    #[test]
+    fn a_broad_jaw_is_not_the_shoulders() {
+        let neck_then_shoulders = |d: f32| if d < 0.15 { 0.06 } else { 0.16 };
+        let with_jaw = |d: f32| if d < 0.07 { 0.093 } else { neck_then_shoulders(d) };
+        for (name, (surface, lm)) in [
+            ("plain", body(neck_then_shoulders)),
+            ("broad jaw", body(with_jaw)),
+        ] {
+            let y = shoulder_line(&surface, &lm).expect("a shoulder line");
+            assert!(
+                (-y - 0.15).abs() < 0.006,
+                "{name}: shoulder line {:.3} m under the eyes, not 0.15",
+                -y
+            );
+        }
     }
 }

@@ -186,7 +186,7 @@ pub fn synthetic_head(
                     asset: name.clone(),
                     reason: e.to_string(),
                 })?;
-            tracing::debug!(identity = %name, record = ?person.record, "generated a synthetic person");
+            tracing::debug!(identity = %name, params = ?synthetic.identity, record = ?person.record, "generated a synthetic person");
             let scene = Arc::new(person.scene);
             keep_person(key, size, scene.clone());
             scene
