@@ -17,7 +17,7 @@ pub enum SpecCommand {
     Check(CheckArgs),
     /// Assemble sample INDEX and write its scene as one .glb: the head, hair, eyebrows and
     /// eyelashes as fibres (LINES with `_RADIUS`, the hair material in extras.lightfarm),
-    /// garment, glasses, headset and the sample's camera, for inspection in other tools or
+    /// garment, glasses, headset, the textures (PNG) and the sample's camera, for inspection in other tools or
     /// `lightfarm render`.
     Glb(GlbArgs),
 }

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Quat, Vec3};
-use lightfarm_render::scene::{shapes, write_glb, Camera, Material, Scene};
+use lightfarm_render::scene::{shapes, write_glb, Camera, Material, Scene, Texture};
 
 /// A file of the built-in asset pack; a missing one fails the test.
 fn asset(rel: &str) -> PathBuf {
@@ -294,6 +294,66 @@ fn write_glb_round_trip_preserves_geometry_materials_transforms() {
     assert!(c0.forward.abs_diff_eq(c1.forward, 1e-5));
     assert!(c0.up.abs_diff_eq(c1.up, 1e-5));
     assert!((c0.yfov_deg - c1.yfov_deg).abs() < 1e-4);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Textures go into the file as PNGs and come back byte for byte, each still named by the
+/// material slot that used it; a material naming a texture the scene lacks is an error.
+#[test]
+fn write_glb_round_trip_preserves_textures() {
+    let dir = scratch_dir("textures");
+    let path = dir.join("textured.glb");
+    let mut scene = Scene::default();
+    // Distinct, non-constant bytes per texture (and alpha not all 255) so a swap or a colour
+    // conversion would show.
+    let texture = |w: u32, h: u32, seed: u32| Texture {
+        width: w,
+        height: h,
+        rgba8: (0..w * h * 4)
+            .map(|i| (i.wrapping_mul(2_654_435_761).wrapping_add(seed) >> 7) as u8)
+            .collect(),
+    };
+    scene.textures = vec![
+        texture(8, 4, 1),
+        texture(4, 4, 2),
+        texture(2, 6, 3),
+        texture(5, 3, 4),
+    ];
+    let skin = Material {
+        name: "skin".into(),
+        base_color_texture: Some(2),
+        metallic_roughness_texture: Some(0),
+        normal_texture: Some(3),
+        normal_scale: 0.5,
+        specular_texture: Some(1),
+        ..Material::default()
+    };
+    scene.add_mesh_instance(shapes::icosphere(0.1, 2), skin, Mat4::IDENTITY);
+    write_glb(&scene, &path).expect("write glb");
+    let back = Scene::load_gltf(&path).expect("load written glb");
+    check_consistent(&back, "textured round trip");
+    let m = back
+        .materials
+        .iter()
+        .find(|m| m.name == "skin")
+        .expect("skin");
+    let bytes = |t: Option<u32>| &back.textures[t.expect("a texture") as usize];
+    for (got, want) in [
+        (bytes(m.base_color_texture), &scene.textures[2]),
+        (bytes(m.metallic_roughness_texture), &scene.textures[0]),
+        (bytes(m.normal_texture), &scene.textures[3]),
+        (bytes(m.specular_texture), &scene.textures[1]),
+    ] {
+        assert_eq!((got.width, got.height), (want.width, want.height));
+        assert!(got.rgba8 == want.rgba8, "texture bytes changed");
+    }
+    assert_eq!(m.normal_scale, 0.5);
+
+    scene.materials[0].normal_texture = Some(9);
+    let e = write_glb(&scene, &dir.join("bad.glb"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("'skin' names texture 9"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

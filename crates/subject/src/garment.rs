@@ -390,7 +390,13 @@ mod tests {
     #[test]
     fn a_broad_jaw_is_not_the_shoulders() {
         let neck_then_shoulders = |d: f32| if d < 0.15 { 0.06 } else { 0.16 };
-        let with_jaw = |d: f32| if d < 0.07 { 0.093 } else { neck_then_shoulders(d) };
+        let with_jaw = |d: f32| {
+            if d < 0.07 {
+                0.093
+            } else {
+                neck_then_shoulders(d)
+            }
+        };
         for (name, (surface, lm)) in [
             ("plain", body(neck_then_shoulders)),
             ("broad jaw", body(with_jaw)),

@@ -1,8 +1,10 @@
-//! Minimal .glb writer so tests and tools can turn analytic scenes into files that go through
-//! the real loader: geometry, factor-only materials (textures are not written; `hair`
-//! materials carry their `extras.lightfarm`), one node per instance, one mesh and node per curve
-//! set (one indexed `LINES` primitive with `POSITION` and `_RADIUS`, which the loader chains
-//! back into the same strands) and the perspective cameras.
+//! Minimal .glb writer so tests and tools can turn scenes into files that go through the real
+//! loader (and open in Blender): geometry, materials with their glTF factors and textures
+//! (base colour, metallic-roughness, normal, KHR_materials_specular's specular texture; each
+//! texture a PNG inside the file, bytes as in [`Scene::textures`]; `hair` materials carry their
+//! `extras.lightfarm`, other models are written as their glTF factors), one node per instance,
+//! one mesh and node per curve set (one indexed `LINES` primitive with `POSITION` and
+//! `_RADIUS`, which the loader chains back into the same strands) and the perspective cameras.
 
 use std::path::Path;
 
@@ -45,6 +47,20 @@ impl Bin {
         self.accessors.len() - 1
     }
 
+    /// A view of `bytes` with no target (what images use), 4-byte aligned.
+    fn view(&mut self, bytes: &[u8]) -> usize {
+        while !self.data.len().is_multiple_of(4) {
+            self.data.push(0);
+        }
+        self.views.push(json!({
+            "buffer": 0,
+            "byteOffset": self.data.len(),
+            "byteLength": bytes.len(),
+        }));
+        self.data.extend_from_slice(bytes);
+        self.views.len() - 1
+    }
+
     fn floats<const N: usize>(&mut self, items: &[[f32; N]], ty: &str, bounds: bool) -> usize {
         let mut acc = json!({"componentType": FLOAT, "count": items.len(), "type": ty});
         if bounds {
@@ -81,11 +97,16 @@ fn material_json(m: &Material) -> Value {
     if m.ior != d.ior {
         ext.insert("KHR_materials_ior".into(), json!({"ior": m.ior}));
     }
-    if m.specular != d.specular || m.specular_color != d.specular_color {
-        ext.insert(
-            "KHR_materials_specular".into(),
-            json!({"specularFactor": m.specular, "specularColorFactor": m.specular_color}),
-        );
+    if m.specular != d.specular
+        || m.specular_color != d.specular_color
+        || m.specular_texture.is_some()
+    {
+        let mut spec =
+            json!({"specularFactor": m.specular, "specularColorFactor": m.specular_color});
+        if let Some(t) = m.specular_texture {
+            spec["specularTexture"] = json!({"index": t});
+        }
+        ext.insert("KHR_materials_specular".into(), spec);
     }
     let mut v = json!({
         "name": m.name,
@@ -96,6 +117,15 @@ fn material_json(m: &Material) -> Value {
         },
         "doubleSided": m.double_sided,
     });
+    if let Some(t) = m.base_color_texture {
+        v["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": t});
+    }
+    if let Some(t) = m.metallic_roughness_texture {
+        v["pbrMetallicRoughness"]["metallicRoughnessTexture"] = json!({"index": t});
+    }
+    if let Some(t) = m.normal_texture {
+        v["normalTexture"] = json!({"index": t, "scale": m.normal_scale});
+    }
     if !ext.is_empty() {
         v["extensions"] = Value::Object(ext);
     }
@@ -154,13 +184,60 @@ fn curves_mesh(bin: &mut Bin, curves: &Curves, scene: &Scene) -> Result<Value, S
     }))
 }
 
+/// A texture as an RGBA PNG, bytes unchanged (sRGB or linear as the material reads them).
+fn png_bytes(t: &super::Texture) -> Result<Vec<u8>, String> {
+    use image::ImageEncoder;
+    let n = (t.width as usize) * (t.height as usize) * 4;
+    if t.width == 0 || t.height == 0 || t.rgba8.len() != n {
+        return Err(format!(
+            "{}x{} texture has {} bytes, expected {n}",
+            t.width,
+            t.height,
+            t.rgba8.len()
+        ));
+    }
+    let mut out = Vec::new();
+    image::codecs::png::PngEncoder::new_with_quality(
+        &mut out,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Adaptive,
+    )
+    .write_image(&t.rgba8, t.width, t.height, image::ExtendedColorType::Rgba8)
+    .map_err(|e| e.to_string())?;
+    Ok(out)
+}
+
 /// Writes `scene` as a binary glTF 2.0 file.
 pub fn write_glb(scene: &Scene, path: &Path) -> Result<(), SceneError> {
     let err = |reason: String| SceneError::Export {
         path: path.to_path_buf(),
         reason,
     };
+    for m in &scene.materials {
+        let named = [
+            m.base_color_texture,
+            m.metallic_roughness_texture,
+            m.normal_texture,
+            m.specular_texture,
+        ];
+        if let Some(t) = named
+            .into_iter()
+            .flatten()
+            .find(|&t| t as usize >= scene.textures.len())
+        {
+            return Err(err(format!(
+                "material '{}' names texture {t}, but the scene has {}",
+                m.name,
+                scene.textures.len()
+            )));
+        }
+    }
     let mut bin = Bin::default();
+    let mut images = Vec::new();
+    for (ti, t) in scene.textures.iter().enumerate() {
+        let png = png_bytes(t).map_err(|e| err(format!("texture {ti}: {e}")))?;
+        images.push(json!({"bufferView": bin.view(&png), "mimeType": "image/png"}));
+    }
     let mut meshes = Vec::new();
     for (mi, mesh) in scene.meshes.iter().enumerate() {
         let n = mesh.positions.len();
@@ -283,6 +360,16 @@ pub fn write_glb(scene: &Scene, path: &Path) -> Result<(), SceneError> {
     });
     if !cameras.is_empty() {
         root["cameras"] = json!(cameras);
+    }
+    if !images.is_empty() {
+        // One texture per image with a repeating, mipmapped sampler: the loader's "texture i
+        // is image i".
+        root["textures"] = json!((0..images.len())
+            .map(|i| json!({"source": i, "sampler": 0}))
+            .collect::<Vec<_>>());
+        root["images"] = json!(images);
+        root["samplers"] =
+            json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]);
     }
     if !used.is_empty() {
         root["extensionsUsed"] = json!(used);
