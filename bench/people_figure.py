@@ -1,4 +1,4 @@
-"""The README's figure of generated people (docs/people.png): 24 synthetic identities of a
+"""The README's figure of generated people (docs/people.jpg): 24 synthetic identities of a
 frontal spec (bench/people.toml) in a grid, and below them a row of the built-in heads under
 the same camera, each the lit0 tile of `lightfarm preview`.
 
@@ -45,7 +45,7 @@ def main():
     ap.add_argument("--people", type=int, default=24)
     ap.add_argument("--scans", type=int, default=8, help="built-in head samples in the last row")
     ap.add_argument("--work", default="/tmp/lightfarm-people-figure")
-    ap.add_argument("--out", default=os.path.join(REPO, "docs", "people.png"))
+    ap.add_argument("--out", default=os.path.join(REPO, "docs", "people.jpg"))
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     spec = os.path.join(REPO, "bench", "people.toml")
@@ -66,7 +66,11 @@ def main():
         sheet.paste(t.resize((s, s), Image.LANCZOS), ((i % cols) * s, (i // cols) * s))
     for i, t in enumerate(built_in[:cols]):
         sheet.paste(t.resize((s, s), Image.LANCZOS), (i * s, rows * s + 8))
-    sheet.save(a.out)
+    # JPEG: at a few spp the tiles are noisy, which PNG stores at 6x the size.
+    if a.out.lower().endswith((".jpg", ".jpeg")):
+        sheet.save(a.out, quality=88, optimize=True)
+    else:
+        sheet.save(a.out)
     print(a.out)
 
 
