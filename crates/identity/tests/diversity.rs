@@ -177,8 +177,8 @@ fn ict_mode_sds_mm() -> Vec<f64> {
     let mut eye = [0.0; 3];
     let irises: Vec<usize> = [verts(id("M_IrisLeft")), verts(id("M_IrisRight"))].concat();
     for &i in &irises {
-        for a in 0..3 {
-            eye[a] += p(i)[a] / irises.len() as f64;
+        for (e, x) in eye.iter_mut().zip(p(i)) {
+            *e += x / irises.len() as f64;
         }
     }
     // Centimetres: face_rect's box is -1.45..+0.75 dm about the eyes, |x| < 0.75 dm,

@@ -243,8 +243,8 @@ fn iris_colour_follows_melanin() {
                     let d = ((x as f32 + 0.5 - cx).powi(2) + (y as f32 + 0.5 - cy).powi(2)).sqrt();
                     if (0.45 * r..0.8 * r).contains(&d) {
                         let i = (y * 256 + x) * 4;
-                        for c in 0..3 {
-                            sum[c] += f64::from(tex.rgba8[i + c]);
+                        for (s, &b) in sum.iter_mut().zip(&tex.rgba8[i..i + 3]) {
+                            *s += f64::from(b);
                         }
                         n += 1;
                     }

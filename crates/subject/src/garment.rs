@@ -297,8 +297,12 @@ impl CoverMap {
     }
 
     /// The largest radius in `p`'s bin and the bins beside it (the angle neighbours), so a
-    /// surface pushed out by it clears the whole bin.
+    /// surface pushed out by it clears the whole bin. Below the map's lowest row the lowest
+    /// row stands in: a body cut off there (a bust) continues at least that wide, and cloth
+    /// below the cut that kept its fitted body's narrower waist would pull the cloth just
+    /// above it through the skin (identity 512 of `lightfarm people check`).
     fn radius_near(&self, p: Vec3) -> Option<f32> {
+        let p = Vec3::new(p.x, p.y.max(self.y0), p.z);
         let k = self.bin(p)?;
         let row = k / ANGLE_BINS;
         let col = k % ANGLE_BINS;
