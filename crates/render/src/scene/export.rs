@@ -30,24 +30,16 @@ struct Bin {
 
 impl Bin {
     fn push(&mut self, bytes: &[u8], target: u32, accessor: Value) -> usize {
-        // All components are 4 bytes wide, so 4-byte alignment satisfies glTF's rules.
-        while !self.data.len().is_multiple_of(4) {
-            self.data.push(0);
-        }
-        self.views.push(json!({
-            "buffer": 0,
-            "byteOffset": self.data.len(),
-            "byteLength": bytes.len(),
-            "target": target,
-        }));
-        self.data.extend_from_slice(bytes);
+        let view = self.view(bytes);
+        self.views[view]["target"] = json!(target);
         let mut accessor = accessor;
-        accessor["bufferView"] = json!(self.views.len() - 1);
+        accessor["bufferView"] = json!(view);
         self.accessors.push(accessor);
         self.accessors.len() - 1
     }
 
-    /// A view of `bytes` with no target (what images use), 4-byte aligned.
+    /// A view of `bytes` with no target (what images use). All components are 4 bytes wide,
+    /// so 4-byte alignment satisfies glTF's rules.
     fn view(&mut self, bytes: &[u8]) -> usize {
         while !self.data.len().is_multiple_of(4) {
             self.data.push(0);
