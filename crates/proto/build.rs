@@ -4,7 +4,9 @@
 use std::path::PathBuf;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../proto");
+    // Read at run time: `env!` would bake in the checkout the script was compiled in, and
+    // checkouts sharing one target directory reuse the compiled script.
+    let root = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR")?).join("../../proto");
     let files = ["common", "jobs", "workers", "samples", "trainer"]
         .map(|f| root.join(format!("lightfarm/v1/{f}.proto")));
     for f in &files {
