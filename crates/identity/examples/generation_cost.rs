@@ -20,7 +20,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .unwrap_or(10);
     let assets = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../assets");
     let t = Instant::now();
-    let model = MakeHuman::load(&assets.join(CORE_FILE), &assets.join(TARGETS_FILE))?;
+    let model = MakeHuman::load(&assets.join(CORE_FILE), &assets.join(TARGETS_FILE))?
+        .with_ict(&assets.join(lightfarm_identity::ict::ICT_FILE))?;
     println!("model load: {:.2} s", t.elapsed().as_secs_f64());
     let spec = IdentitySpec::default();
     let (mut mesh_s, mut full_s, mut small_s) = (Vec::new(), Vec::new(), Vec::new());

@@ -24,7 +24,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     std::fs::create_dir_all(&out)?;
     let assets = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../assets");
-    let model = MakeHuman::load(&assets.join(CORE_FILE), &assets.join(TARGETS_FILE))?;
+    let model = MakeHuman::load(&assets.join(CORE_FILE), &assets.join(TARGETS_FILE))?
+        .with_ict(&assets.join(lightfarm_identity::ict::ICT_FILE))?;
     for k in ids {
         let id = sample_identity(&IdentitySpec::default(), seed, k);
         let person = generate(&model, &id, TextureSize::FULL)?;

@@ -3,6 +3,7 @@
 
 pub mod error;
 pub mod eyes;
+pub mod ict;
 pub mod makehuman;
 pub mod person;
 pub mod skin;

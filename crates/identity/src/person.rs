@@ -114,6 +114,7 @@ pub fn shape_of(id: &SyntheticIdentity) -> Shape {
         seed: id.shape_seed,
         detail_sd: id.face_shape_sd,
         asymmetry_sd: id.asymmetry_sd,
+        ict: id.ict_shape.clone(),
     }
 }
 

@@ -219,17 +219,25 @@ fn total(sds: &[f64]) -> f64 {
 }
 
 /// Face shapes of 100 people vary along many modes, not one, by amounts of the order of real
-/// faces (the ICT Face Model's modes over the same region), and `face_shape_sd` scales the
-/// variation it controls.
+/// faces (the ICT Face Model's modes over the same region), and both sources of face shape
+/// beyond the macros add variation: MakeHuman's face modifiers (`face_shape_sd`) and the ICT
+/// light-stage modes (`ict_shape_sd`).
 #[test]
 fn face_shapes_vary_along_pca_modes_like_real_faces() {
     let n = 100;
     let ours = mode_sds_mm(&faces(&IdentitySpec::default(), n));
+    // The MakeHuman modifiers alone at the spread they need without ICT shapes.
+    let no_ict = IdentitySpec {
+        ict_shape_sd: 0.0,
+        face_shape_sd: 0.25,
+        ..IdentitySpec::default()
+    };
+    let makehuman_only = mode_sds_mm(&faces(&no_ict, n));
     let macro_only = mode_sds_mm(&faces(
         &IdentitySpec {
             face_shape_sd: 0.0,
             asymmetry_sd: 0.0,
-            ..IdentitySpec::default()
+            ..no_ict
         },
         n,
     ));
@@ -242,21 +250,20 @@ fn face_shapes_vary_along_pca_modes_like_real_faces() {
             .join(" ")
     };
     println!("mode sd, mm RMS per face vertex (first 8; total over all modes):");
-    println!(
-        "  generated (default spec, {n} people): {}; total {:.2}",
-        show(&ours),
-        total(&ours)
-    );
-    println!(
-        "  generated, macros only (face_shape_sd = asymmetry_sd = 0): {}; total {:.2}",
-        show(&macro_only),
-        total(&macro_only)
-    );
-    println!(
-        "  ICT Face Model (100 modes): {}; total {:.2}",
-        show(&ict),
-        total(&ict)
-    );
+    for (what, sds) in [
+        (format!("generated (default spec, {n} people)"), &ours),
+        (
+            "generated without ICT modes (ict_shape_sd = 0, face_shape_sd = 0.25)".to_owned(),
+            &makehuman_only,
+        ),
+        (
+            "generated, macros only (all three sds 0)".to_owned(),
+            &macro_only,
+        ),
+        ("ICT Face Model (100 modes)".to_owned(), &ict),
+    ] {
+        println!("  {what}: {}; total {:.2}", show(sds), total(sds));
+    }
     // Real faces differ by millimetres; a generator whose people all look alike would be far
     // below, one of caricatures far above.
     let ratio = total(&ours) / total(&ict);
@@ -268,11 +275,17 @@ fn face_shapes_vary_along_pca_modes_like_real_faces() {
     );
     // Many directions of variation: the fifth mode still carries a tenth of the first's sd.
     assert!(ours[4] > 0.1 * ours[0], "modes {}", show(&ours));
-    // The face modifiers add variation beyond the macros' (age, gender, build, ancestry).
+    // Each source adds variation beyond the others.
     assert!(
-        total(&ours) > 1.1 * total(&macro_only),
+        total(&makehuman_only) > 1.1 * total(&macro_only),
         "face_shape_sd adds nothing: {:.2} vs {:.2} mm",
-        total(&ours),
+        total(&makehuman_only),
         total(&macro_only)
+    );
+    assert!(
+        total(&ours) > 1.1 * total(&makehuman_only),
+        "the ICT modes add nothing: {:.2} vs {:.2} mm",
+        total(&ours),
+        total(&makehuman_only)
     );
 }

@@ -17,6 +17,7 @@ fn shape(seed: u64, gender: f64) -> Shape {
         seed,
         detail_sd: 0.25,
         asymmetry_sd: 0.1,
+        ict: Vec::new(),
     }
 }
 

@@ -21,12 +21,19 @@ pub const SYNTHETIC: &str = "synthetic";
 
 /// Bumped whenever the same parameters would build a different person; samples record it and
 /// a worker refuses a record made by another version.
-pub const GENERATOR: &str = "makehuman-bust-3";
+pub const GENERATOR: &str = "makehuman-ict-4";
 
 /// Identity streams are keyed by (seed, k, stream), separate from the per-sample streams of
 /// `expand`, so every sample of identity k sees the same person.
 const STREAM_SHAPE: u64 = 101;
 const STREAM_SKIN: u64 = 102;
+const STREAM_ICT: u64 = 103;
+
+/// The ICT Face Model light has 100 identity modes; each person gets a coefficient for each.
+pub const ICT_MODES: usize = 100;
+/// ICT coefficients are truncated at this many standard deviations: beyond it a PCA model's
+/// faces leave the range of the scans it was fitted to.
+pub const ICT_TRUNCATION: f64 = 2.5;
 /// A domain tag folded into the seed so identity k and sample k never share a state.
 const IDENTITY_DOMAIN: u64 = 0x1D_E471_7150_0000;
 
@@ -50,6 +57,9 @@ pub struct IdentitySpec {
     pub face_shape_sd: f64,
     /// Standard deviation of the asymmetry modifiers.
     pub asymmetry_sd: f64,
+    /// Standard deviation of the ICT Face Model's identity coefficients (light-stage scans of
+    /// real faces; 1 = the scanned people's spread, 0 = no ICT shape).
+    pub ict_shape_sd: f64,
     /// MakeHuman's muscle and weight macros (0.5 = average), uniform: the body build.
     pub muscle: [f64; 2],
     pub weight: [f64; 2],
@@ -70,8 +80,11 @@ impl Default for IdentitySpec {
             male_fraction: 0.5,
             ancestry: [1.0, 1.0, 1.0],
             skin_types: [1.0; 6],
-            face_shape_sd: 0.25,
+            // The ICT modes carry most of a face's own shape (they come from scans); the
+            // MakeHuman modifiers add a little of theirs.
+            face_shape_sd: 0.1,
             asymmetry_sd: 0.1,
+            ict_shape_sd: 1.0,
             muscle: [0.3, 0.7],
             weight: [0.25, 0.8],
             // Donner & Jensen 2006 / Jimenez 2010: 0.2 %-7 % blood; most faces 1-4 %.
@@ -115,6 +128,8 @@ pub struct SyntheticIdentity {
     pub asymmetry_sd: f64,
     /// Seed of the face-shape modifiers.
     pub shape_seed: u64,
+    /// Coefficients of the ICT Face Model's identity modes, first mode first (empty: none).
+    pub ict_shape: Vec<f64>,
     pub skin: SkinParams,
     /// Stromal melanin of the iris: 0 blue, ~0.45 green-hazel, 1 dark brown.
     pub iris_melanin: f64,
@@ -170,6 +185,16 @@ pub fn sample_identity(spec: &IdentitySpec, seed: u64, id: u64) -> SyntheticIden
     let freckle_scale = [1.0, 0.8, 0.45, 0.15, 0.0, 0.0][usize::from(category - 1)];
     let freckles = rng.uniform(spec.freckles[0], spec.freckles[1]) * freckle_scale;
     let texture_seed = rng.next_u64() >> 11;
+    // A stream of its own, so the other parameters of identity k are those of earlier
+    // generators.
+    let mut ict = SampleRng::new(key, id, STREAM_ICT);
+    let ict_shape = if spec.ict_shape_sd > 0.0 {
+        (0..ICT_MODES)
+            .map(|_| ict.normal(ICT_TRUNCATION) * spec.ict_shape_sd)
+            .collect()
+    } else {
+        Vec::new()
+    };
     // Iris colour follows skin tone: light irises occur almost only with light skin (the
     // exponent skews light categories towards blue and grey, dark ones to brown).
     let c = usize::from(category - 1);
@@ -187,6 +212,7 @@ pub fn sample_identity(spec: &IdentitySpec, seed: u64, id: u64) -> SyntheticIden
         face_shape_sd: spec.face_shape_sd,
         asymmetry_sd: spec.asymmetry_sd,
         shape_seed,
+        ict_shape,
         skin: SkinParams {
             category,
             tone,
@@ -203,7 +229,7 @@ pub fn sample_identity(spec: &IdentitySpec, seed: u64, id: u64) -> SyntheticIden
 pub const MAX_SYNTHETIC: i64 = 10_000_000;
 
 /// The model assets synthetic people are generated from.
-pub const SYNTHETIC_MODELS: [&str; 2] = ["makehuman_core", "makehuman_targets"];
+pub const SYNTHETIC_MODELS: [&str; 3] = ["makehuman_core", "makehuman_targets", "ict_face_model"];
 
 pub(crate) fn is_synthetic_name(name: &str) -> bool {
     synthetic_id(name).is_some()
@@ -268,9 +294,18 @@ pub(crate) fn resolve_people(
         if !(v.is_finite() && (0.0..=1.0).contains(&v)) {
             return Err(bad(
                 key,
-                format!("is {v}; it must be in [0, 1] (0.25 is a natural spread)"),
+                format!("is {v}; it must be in [0, 1] (0.1 with the ICT shapes, 0.25 without, is a natural spread)"),
             ));
         }
+    }
+    if !(p.ict_shape_sd.is_finite() && (0.0..=2.0).contains(&p.ict_shape_sd)) {
+        return Err(bad(
+            "identity.ict_shape_sd",
+            format!(
+                "is {}; it must be in [0, 2] (1 is the spread of the scanned faces, 0 turns the ICT shapes off)",
+                p.ict_shape_sd
+            ),
+        ));
     }
     range_in("identity.muscle", p.muscle, 0.0, 1.0, bad)?;
     range_in("identity.weight", p.weight, 0.0, 1.0, bad)?;

@@ -599,4 +599,27 @@ fn synthetic_identities_split_and_repeat() {
         .validate(&catalog)
         .unwrap_err();
     assert!(err.to_string().contains("synthetic-0000300"), "{err}");
+    // The ICT shapes' spread: a value outside [0, 2] is named with its range; 0 draws none.
+    let bad = text.replace("count = 300", "count = 300\nict_shape_sd = 3.0");
+    let err = lightfarm_scene::spec::DatasetSpec::from_toml_str(&bad, "syn.toml")
+        .unwrap()
+        .validate(&catalog)
+        .unwrap_err();
+    assert!(
+        err.to_string().contains("identity.ict_shape_sd") && err.to_string().contains("[0, 2]"),
+        "{err}"
+    );
+    let spec = lightfarm_scene::identity::IdentitySpec::default();
+    let person = lightfarm_scene::identity::sample_identity(&spec, 5, 3);
+    assert_eq!(person.ict_shape.len(), lightfarm_scene::identity::ICT_MODES);
+    assert!(person.ict_shape.iter().all(|c| c.abs() <= 2.5));
+    let off = lightfarm_scene::identity::IdentitySpec {
+        ict_shape_sd: 0.0,
+        ..spec
+    };
+    let plain = lightfarm_scene::identity::sample_identity(&off, 5, 3);
+    assert!(plain.ict_shape.is_empty());
+    // The other parameters of a person do not depend on the ICT draw.
+    assert_eq!(plain.skin, person.skin);
+    assert_eq!(plain.shape_seed, person.shape_seed);
 }

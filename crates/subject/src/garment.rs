@@ -39,15 +39,30 @@ const NECK_ABOVE_SHOULDERS_M: f32 = 0.02;
 /// Shoulders are measured this far below the shoulder line.
 const SHOULDER_BELOW_LINE_M: f32 = 0.05;
 
-/// Extent of the skin in a 1 cm slab at height `y`: (min, max, count).
+/// Extent of the skin's cross-section at height `y`: (min, max, how many edges cross it).
+/// The plane through the triangles, not the vertices near it: a neck's vertex rings are
+/// 1-2 cm apart, so a thin slab of vertices can miss the back of the neck on one body and not
+/// on the next (a collar was placed 4.5 cm forward that way, cutting into the throat).
 fn slab(surface: &HeadSurface, y: f32) -> (Vec3, Vec3, usize) {
     let mut lo = Vec3::splat(f32::INFINITY);
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
     let mut n = 0;
-    for p in surface.positions.iter().filter(|p| (p.y - y).abs() < 0.005) {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
-        n += 1;
+    for t in &surface.triangles {
+        for k in 0..3 {
+            let (Some(&a), Some(&b)) = (
+                surface.positions.get(t[k] as usize),
+                surface.positions.get(t[(k + 1) % 3] as usize),
+            ) else {
+                continue;
+            };
+            if (a.y <= y) == (b.y <= y) {
+                continue;
+            }
+            let p = a + (b - a) * ((y - a.y) / (b.y - a.y));
+            lo = lo.min(p);
+            hi = hi.max(p);
+            n += 1;
+        }
     }
     (lo, hi, n)
 }
@@ -90,13 +105,8 @@ pub fn measure_neck(surface: &HeadSurface, lm: &Landmarks) -> Option<Neck> {
 /// skin there.
 pub fn measure_shoulders(surface: &HeadSurface, neck: &Neck) -> Option<f32> {
     let y = neck.centre.y - NECK_ABOVE_SHOULDERS_M - SHOULDER_BELOW_LINE_M;
-    let xs: Vec<f32> = surface
-        .positions
-        .iter()
-        .filter(|p| (p.y - y).abs() < 0.005)
-        .map(|p| (p.x - neck.centre.x).abs())
-        .collect();
-    (xs.len() >= 8).then(|| xs.into_iter().fold(0.0, f32::max))
+    let (lo, hi, n) = slab(surface, y);
+    (n >= 8).then(|| (hi.x - neck.centre.x).max(neck.centre.x - lo.x))
 }
 
 /// A body's fit measurements: neck and shoulder half-width.
@@ -362,19 +372,33 @@ mod tests {
     /// A body as rings of 16 points every 5 mm from 6 cm to 25 cm under the eyes, with the
     /// half-width `width(depth below the eyes)`.
     fn body(width: impl Fn(f32) -> f32) -> (HeadSurface, Landmarks) {
+        body_rings(width, 0.005)
+    }
+
+    /// The same with rings `step` apart, joined by triangles.
+    fn body_rings(width: impl Fn(f32) -> f32, step: f32) -> (HeadSurface, Landmarks) {
         let mut positions = Vec::new();
-        for k in 0..=38 {
-            let depth = 0.06 + k as f32 * 0.005;
+        let rings = (0.19 / step).round() as u32;
+        for k in 0..=rings {
+            let depth = 0.06 + k as f32 * step;
             let w = width(depth);
             for a in 0..16 {
                 let t = a as f32 / 16.0 * std::f32::consts::TAU;
                 positions.push(Vec3::new(w * t.cos(), -depth, 0.06 * t.sin()));
             }
         }
+        let mut triangles = Vec::new();
+        for k in 0..rings {
+            for a in 0..16 {
+                let (i, j) = (k * 16 + a, k * 16 + (a + 1) % 16);
+                triangles.push([i, j, i + 16]);
+                triangles.push([j, j + 16, i + 16]);
+            }
+        }
         let surface = HeadSurface {
             normals: vec![Vec3::Z; positions.len()],
             positions,
-            triangles: Vec::new(),
+            triangles,
         };
         let eye = Vec3::new(0.0, 0.0, 0.08);
         let lm = Landmarks {
@@ -412,5 +436,25 @@ mod tests {
                 -y
             );
         }
+    }
+
+    /// Vertex rings 1.5 cm apart (a coarse body mesh's neck): the neck is still measured at
+    /// its back and its full width, wherever the rings fall.
+    #[test]
+    fn the_neck_is_measured_between_sparse_vertex_rings() {
+        let neck_then_shoulders = |d: f32| if d < 0.15 { 0.06 } else { 0.16 };
+        let (surface, lm) = body_rings(neck_then_shoulders, 0.015);
+        let neck = measure_neck(&surface, &lm).expect("a neck");
+        // The back of a 16-gon ring of radius 6 cm: -0.06 at a vertex, -0.0588 mid-edge.
+        assert!(
+            neck.centre.z < -0.058,
+            "the neck's back at z = {} m, not -0.06",
+            neck.centre.z
+        );
+        assert!(
+            (neck.half_width - 0.06).abs() < 0.003,
+            "neck half-width {} m, not 0.06",
+            neck.half_width
+        );
     }
 }

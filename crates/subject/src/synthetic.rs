@@ -20,24 +20,32 @@ use crate::SubjectError;
 /// few dozen pixels, and full textures would cost more than the render.
 const SMALL_TEXTURES_MAX_PX: u32 = 128;
 
-/// The loaded model, kept for the process: workers render many samples from one pair of files.
-type Cached = (PathBuf, PathBuf, Arc<MakeHuman>);
+/// The loaded models, kept for the process: workers render many samples from one set of files.
+type Cached = (Vec<PathBuf>, Arc<MakeHuman>);
 static MODEL: Mutex<Option<Cached>> = Mutex::new(None);
 
-fn model(core: PathBuf, targets: PathBuf) -> Result<Arc<MakeHuman>, SubjectError> {
+/// MakeHuman from its core and targets files, with the ICT Face Model's modes matched to it.
+fn model(paths: Vec<PathBuf>) -> Result<Arc<MakeHuman>, SubjectError> {
     let mut cache = MODEL.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some((c, t, m)) = cache.as_ref() {
-        if *c == core && *t == targets {
+    if let Some((p, m)) = cache.as_ref() {
+        if *p == paths {
             return Ok(m.clone());
         }
     }
-    let loaded = Arc::new(
-        MakeHuman::load(&core, &targets).map_err(|e| SubjectError::Asset {
+    let [core, targets, ict] = paths.as_slice() else {
+        return Err(SubjectError::Asset {
+            asset: "makehuman".into(),
+            reason: format!("expected 3 model files, got {}", paths.len()),
+        });
+    };
+    let loaded = MakeHuman::load(core, targets)
+        .and_then(|m| m.with_ict(ict))
+        .map_err(|e| SubjectError::Asset {
             asset: "makehuman".into(),
             reason: e.to_string(),
-        })?,
-    );
-    *cache = Some((core, targets, loaded.clone()));
+        })?;
+    let loaded = Arc::new(loaded);
+    *cache = Some((paths, loaded.clone()));
     Ok(loaded)
 }
 
@@ -166,7 +174,7 @@ pub fn synthetic_head(
         let (_, path) = resolve(catalog, &pinned.id, &pinned.blake3, AssetKind::Model)?;
         paths.push(path);
     }
-    let model = model(paths[0].clone(), paths[1].clone())?;
+    let model = model(paths)?;
     let r = &sample.render;
     let size = if r.width.max(r.height) <= SMALL_TEXTURES_MAX_PX {
         TextureSize::SMALL

@@ -47,7 +47,7 @@ pub const SLOTS: usize = 7;
 pub const HEAD_ISLAND: [[f32; 2]; 2] = [[0.635, 0.135], [0.985, 0.83]];
 
 /// How a person's shape is drawn.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Shape {
     pub macros: Macros,
     /// Seed of the face-detail weights.
@@ -56,6 +56,9 @@ pub struct Shape {
     pub detail_sd: f64,
     /// Standard deviation of the asymmetry modifiers.
     pub asymmetry_sd: f64,
+    /// Coefficients of the ICT Face Model's identity modes (first modes first; empty: none),
+    /// applied through [`MakeHuman::ict`].
+    pub ict: Vec<f64>,
 }
 
 /// Detail modifiers are truncated here: beyond it MakeHuman's targets turn into caricature.
@@ -143,6 +146,19 @@ pub fn shaped_positions(
         if let Some(t) = model.targets.get(name) {
             t.apply(&mut v, w as f32)
                 .map_err(|reason| format!("target {name}: {reason}"))?;
+        }
+    }
+    if !shape.ict.is_empty() {
+        let face = model.ict.as_ref().ok_or(
+            "the shape has ICT face-shape coefficients but the ICT Face Model was not loaded",
+        )?;
+        for (i, d) in face.offsets(&shape.ict)? {
+            let p = v
+                .get_mut(i as usize)
+                .ok_or_else(|| format!("the ICT match names base vertex {i}"))?;
+            for k in 0..3 {
+                p[k] += d[k];
+            }
         }
     }
     Ok((v, weights))

@@ -17,6 +17,8 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{model_error, IdentityError};
 use crate::eyes::{find_irises, Iris};
+use crate::ict::transfer::IctFace;
+use crate::ict::IctModel;
 use crate::skin::maps::FaceUv;
 use obj::BaseMesh;
 use proxy::Proxy;
@@ -76,6 +78,8 @@ pub struct MakeHuman {
     pub face_uv: FaceUv,
     /// The two irises of `eye_texture`, which each person's iris colour replaces.
     pub irises: [Iris; 2],
+    /// The ICT Face Model's identity modes carried onto `base` ([`MakeHuman::with_ict`]).
+    pub ict: Option<IctFace>,
 }
 
 /// Where the two files are looked for by default, relative to the asset pack.
@@ -118,6 +122,16 @@ fn decode_image(bytes: &[u8], path: &Path, entry: &str) -> Result<Image8, Identi
 }
 
 impl MakeHuman {
+    /// Loads the ICT Face Model at `path` and matches it to the base mesh, so shapes with ICT
+    /// coefficients can be built.
+    pub fn with_ict(mut self, path: &Path) -> Result<MakeHuman, IdentityError> {
+        let model = IctModel::load(path)?;
+        let face = IctFace::new(model, &self.base)
+            .map_err(|reason| model_error(path, "matching the MakeHuman base mesh", reason))?;
+        self.ict = Some(face);
+        Ok(self)
+    }
+
     /// Loads the core archive and the target set. A missing file is an error saying how to
     /// install it; a malformed one names the entry.
     pub fn load(core: &Path, targets: &Path) -> Result<MakeHuman, IdentityError> {
@@ -241,6 +255,7 @@ impl MakeHuman {
             eye_clear,
             face_uv: FaceUv::default(),
             irises,
+            ict: None,
         };
         model.face_uv = FaceUv::find(&model.base).ok_or_else(|| {
             model_error(

@@ -5,6 +5,7 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
+use lightfarm_identity::ict::ICT_FILE;
 use lightfarm_identity::makehuman::{MakeHuman, CORE_FILE, TARGETS_FILE};
 
 pub fn assets() -> PathBuf {
@@ -15,6 +16,7 @@ pub fn model() -> &'static MakeHuman {
     static MODEL: OnceLock<MakeHuman> = OnceLock::new();
     MODEL.get_or_init(|| {
         MakeHuman::load(&assets().join(CORE_FILE), &assets().join(TARGETS_FILE))
+            .and_then(|m| m.with_ict(&assets().join(ICT_FILE)))
             .unwrap_or_else(|e| panic!("{e}"))
     })
 }
