@@ -1,5 +1,7 @@
-//! Times generating synthetic people: model load once, then per person the bust (shape,
-//! eyes, 52 Face Units with their normals) and the full-size skin textures.
+//! Times generating synthetic people: model load once (MakeHuman, and the ICT Face Model with
+//! its match to the base mesh), then per person the bust (shape, eyes, 52 Face Units with their
+//! normals), the same without the ICT modes, and the person with full-size and small skin
+//! textures.
 //!
 //!     cargo run --release -p lightfarm-identity --example generation_cost -- [PEOPLE]
 //!
@@ -24,12 +26,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .with_ict(&assets.join(lightfarm_identity::ict::ICT_FILE))?;
     println!("model load: {:.2} s", t.elapsed().as_secs_f64());
     let spec = IdentitySpec::default();
-    let (mut mesh_s, mut full_s, mut small_s) = (Vec::new(), Vec::new(), Vec::new());
+    let no_ict = IdentitySpec {
+        ict_shape_sd: 0.0,
+        ..IdentitySpec::default()
+    };
+    let (mut mesh_s, mut plain_s, mut full_s, mut small_s) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for k in 0..n {
         let id = sample_identity(&spec, 7, k);
         let t = Instant::now();
         bust::build(&model, &shape_of(&id))?;
         mesh_s.push(t.elapsed().as_secs_f64());
+        let t = Instant::now();
+        bust::build(&model, &shape_of(&sample_identity(&no_ict, 7, k)))?;
+        plain_s.push(t.elapsed().as_secs_f64());
         let t = Instant::now();
         generate(&model, &id, TextureSize::FULL)?;
         full_s.push(t.elapsed().as_secs_f64());
@@ -48,6 +58,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     println!("{n} people");
     println!("  bust mesh only:            {}", stats(&mut mesh_s));
+    println!("  bust mesh without ICT:     {}", stats(&mut plain_s));
     println!("  person, full textures:     {}", stats(&mut full_s));
     println!("  person, small textures:    {}", stats(&mut small_s));
     Ok(())

@@ -162,13 +162,12 @@ impl Spline {
             for v in a[col].iter_mut() {
                 *v *= inv;
             }
-            for r in 0..m {
-                if r != col {
-                    let f = a[r][col];
-                    if f != 0.0 {
-                        for c in 0..m + 3 {
-                            a[r][c] -= f * a[col][c];
-                        }
+            let pivot_row = a[col].clone();
+            for (r, row) in a.iter_mut().enumerate() {
+                let f = row[col];
+                if r != col && f != 0.0 {
+                    for (x, p) in row.iter_mut().zip(&pivot_row) {
+                        *x -= f * p;
                     }
                 }
             }
@@ -184,15 +183,16 @@ impl Spline {
     fn warp(&self, p: [f32; 3]) -> [f32; 3] {
         let q = p.map(f64::from);
         let mut d = self.affine[0];
-        for k in 0..3 {
-            for a in 0..3 {
-                d[k] += self.affine[1 + a][k] * q[a];
+        // Per component the terms are added in the same order as a row-by-column product.
+        for (row, qa) in self.affine[1..].iter().zip(q) {
+            for (dk, rk) in d.iter_mut().zip(row) {
+                *dk += rk * qa;
             }
         }
         for (c, w) in self.centres.iter().zip(&self.w) {
             let r = f64::from(dist(p, *c));
-            for k in 0..3 {
-                d[k] += w[k] * r;
+            for (dk, wk) in d.iter_mut().zip(w) {
+                *dk += wk * r;
             }
         }
         [0, 1, 2].map(|k| p[k] + d[k] as f32)
@@ -443,8 +443,8 @@ impl IctFace {
             }
             out.push((m.vertex, d));
         }
-        for side in 0..2 {
-            out.extend(self.eyes[side].iter().map(|&v| (v, eyes[side])));
+        for (vertices, d) in self.eyes.iter().zip(eyes) {
+            out.extend(vertices.iter().map(|&v| (v, d)));
         }
         let d = rigid(&|mode| self.mouth_means[mode]);
         out.extend(self.mouth.iter().map(|&v| (v, d)));
