@@ -4,10 +4,12 @@
 #      Mitsuba 3's cuda_ad_rgb on the same scenes when `import mitsuba` works;
 #   2. training iterations/s of the relighting network, Burn's wgpu backend vs the same network
 #      in PyTorch CUDA (bench/train_torch.py), same run, same shapes, batch 1 and 8 at 256²;
+#      then the traversal counters of the ICT heads against the other heads, and shared paths
+#      (K = 2 and 8 lightings) against separate renders on a dataset sample;
 #   3. the whole pipeline on the GPU: a dataset rendered, a tiny network trained on it until it
 #      overfits, `lightfarm eval` on the samples it saw.
 # Usage: bench/gpu.sh [OUT]  (default out/gpu-bench)
-# Env: BIN = a folder with prebuilt `lightfarm`, `bench_train` and `bench_scene` (built with
+# Env: BIN = a folder with prebuilt `lightfarm`, `bench_train`, `bench_scene` and `lighting_cost` (built with
 #      --features gpu) for machines without cargo; by default they are built here. SPHERE = the
 #      bench sphere (`bench_scene` output) if it exists already.
 #      PYTHON = a python with torch and CUDA (default python3). STEPS = overfit steps (800).
@@ -24,9 +26,10 @@ if [ -z "${BIN:-}" ]; then
     cargo build --release --locked -p lightfarm --features gpu >&2
     cargo build --release --locked -p lightfarm-trainer --example bench_train --features gpu >&2
     cargo build --release --locked -p lightfarm-render --example bench_scene >&2
+    cargo build --release --locked -p lightfarm-subject --example lighting_cost >&2
     BIN=$OUT/bin
     mkdir -p "$BIN"
-    cp "$CARGO_TARGET_DIR"/release/lightfarm "$CARGO_TARGET_DIR"/release/examples/bench_{train,scene} "$BIN"/
+    cp "$CARGO_TARGET_DIR"/release/lightfarm "$CARGO_TARGET_DIR"/release/examples/{bench_train,bench_scene,lighting_cost} "$BIN"/
 fi
 lf=$BIN/lightfarm
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
@@ -78,6 +81,33 @@ print(line)
 PY
     done
 done
+
+echo "## traversal counters: the ICT heads against the other heads (the 35x open problem)"
+# Same scenes, cameras and seeds as tests/traversal_counters.rs counts on lavapipe: if the
+# counts per ray match lavapipe's here, the slowdown is not the traversal's work but how the
+# device runs it; if they differ, the heat maps show where.
+for head in LeePerrySmith_textured mh_head_01_f_young_caucasian ict_head_seed7_1 ict_head_seed7_2; do
+    for mode in plain counters; do
+        extra=()
+        [ $mode = counters ] && extra=(--counters "$OUT/heat_$head.png")
+        "$lf" render --scene "assets/heads/$head.glb" --hdri assets/hdri/studio_small_03_1k.hdr \
+            --size 256x256 --spp 64 --max-depth 8 --device gpu --lightings separate \
+            --out "$OUT/count_$head.exr" --stats "$OUT/count_${head}_$mode.json" "${extra[@]}" >&2
+    done
+    "$PYTHON" - "$OUT/count_${head}" "$head" <<'PY'
+import json, sys
+base, head = sys.argv[1:]
+plain, counted = (json.load(open(f"{base}_{m}.json")) for m in ("plain", "counters"))
+t = counted["traversal"]
+print(f"{head}: {plain['seconds']:.2f} s, {plain['rays_per_second'] / 1e6:.2f} M rays/s "
+      f"({counted['seconds']:.2f} s counting); per ray {t['nodes_per_ray']:.2f} node tests, "
+      f"{t['prims_per_ray']:.2f} primitive tests, {t['blas_per_ray']:.2f} BLAS entries; "
+      f"deepest stack {t['max_depth']}, {t['overflows']} overflows")
+PY
+done
+
+echo "## shared paths: K lightings on one set of camera paths against K separate renders"
+"$BIN/lighting_cost" examples/dataset.toml 0 512 64 2 8
 
 fi
 

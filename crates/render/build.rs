@@ -1,6 +1,8 @@
 //! Compiles the WGSL kernels under `shaders/kernels/` to SPIR-V with naga at build time, so a
 //! broken shader fails `cargo build` with naga's diagnostic rather than a user's render.
 //! `//!include path` lines (relative to `shaders/`) splice in shared code, once per file.
+//! Every kernel gets `TRAVERSAL_COUNTERS` prepended: false, except in `integrator_counters`
+//! (the integrator with the per-pixel traversal counters of shaders/inc/traverse.wgsl).
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -29,9 +31,16 @@ fn main() {
     let root = manifest.join("../../shaders");
     let out_dir = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     println!("cargo:rerun-if-changed={}", root.display());
-    for kernel in ["integrator", "probe", "trace_rays", "tables"] {
-        let rel = format!("kernels/{kernel}.wgsl");
-        let mut src = String::new();
+    let kernels = [
+        ("integrator", "integrator", false),
+        ("integrator_counters", "integrator", true),
+        ("probe", "probe", false),
+        ("trace_rays", "trace_rays", false),
+        ("tables", "tables", false),
+    ];
+    for (kernel, file, counters) in kernels {
+        let rel = format!("kernels/{file}.wgsl");
+        let mut src = format!("const TRAVERSAL_COUNTERS: bool = {counters};\n");
         expand(&root, &rel, &mut HashSet::new(), &mut src);
         std::fs::write(out_dir.join(format!("{kernel}.wgsl")), &src).expect("write expanded WGSL");
         let module = match naga::front::wgsl::parse_str(&src) {

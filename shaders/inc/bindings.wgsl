@@ -83,9 +83,9 @@ struct Push {
     light: u32,
     write_aux: u32,
     mode: u32,   // probe / test kernels: what to run; integrator: the stage (STAGE_*)
-    count: u32,  // probe / test kernels: how many items
+    count: u32,  // probe / test kernels: how many items; integrator: lightings sharing each path
     mutate: u32, // probe kernel: 0, or 1 + axis of a deliberately biased sampler (tests only)
-    passes: u32, // integrator: 1 = accumulate the appendix passes of `light` into probe_out
+    passes: u32, // integrator: 1 = accumulate the appendix passes of its lightings into probe_out
 };
 
 const NO_NODE: u32 = 0xffffffffu;

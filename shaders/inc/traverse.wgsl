@@ -20,6 +20,24 @@ var<workgroup> blas_stack: array<vec2<u32>, 1536>; // WG_INVOCATIONS * BLAS_STAC
 var<workgroup> tlas_stack: array<vec2<u32>, 512>;  // WG_INVOCATIONS * TLAS_STACK
 var<private> stack_base: u32;
 
+// Traversal counters: TRAVERSAL_COUNTERS is a constant that crates/render/build.rs prepends to
+// every kernel (false in the production integrator, true in `integrator_counters`), so the
+// production code carries no trace of them. Totals since the invocation's last flush.
+var<private> tc_nodes: u32;     // node tests (8 child boxes each)
+var<private> tc_prims: u32;     // triangle or fibre-segment tests
+var<private> tc_blas: u32;      // BLAS entries (instances whose box a ray reached)
+var<private> tc_depth: u32;     // deepest traversal stack (BLAS or TLAS entries)
+var<private> tc_overflow: u32;  // pushes onto a full stack (a subtree lost)
+
+fn tc_push(sp: u32, cap: u32) {
+    if (TRAVERSAL_COUNTERS) {
+        tc_depth = max(tc_depth, sp + 1u);
+        if (sp + 1u >= cap) {
+            tc_overflow += 1u;
+        }
+    }
+}
+
 struct Ray {
     origin: vec3<f32>,
     dir: vec3<f32>,
@@ -281,10 +299,16 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
     var current = vec2<u32>(0u, 0x80000000u);
     var prims = vec2<u32>(0u, 0u);
     var found = false;
+    if (TRAVERSAL_COUNTERS) {
+        tc_blas += 1u;
+    }
     loop {
         while (prims.y != 0u) {
             let local = firstLeadingBit(prims.y);
             prims.y &= ~(1u << local);
+            if (TRAVERSAL_COUNTERS) {
+                tc_prims += 1u;
+            }
             let tmax = select((*best).t, 3.4e38, (*best).t < 0.0);
             var slot: u32;
             var h: vec3<f32>;
@@ -315,10 +339,14 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
             current.y &= ~(1u << offset);
             if ((current.y & 0xff000000u) != 0u) {
                 blas_stack[sb + sp] = current;
+                tc_push(sp, BLAS_STACK);
                 sp = min(sp + 1u, BLAS_STACK - 1u);
             }
             let slot_index = (offset - 24u) ^ (oct & 0xffu);
             let relative = countOneBits(hits_imask & ~(0xffffffffu << slot_index));
+            if (TRAVERSAL_COUNTERS) {
+                tc_nodes += 1u;
+            }
             let tmax = select((*best).t, 3.4e38, (*best).t < 0.0);
             let nh = intersect_node(inst.node_offset + current.x + relative, origin, inv_dir, tmin, tmax, oct);
             current.x = nh.child_base;
@@ -375,10 +403,14 @@ fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
             current.y &= ~(1u << offset);
             if ((current.y & 0xff000000u) != 0u) {
                 tlas_stack[sb + sp] = current;
+                tc_push(sp, TLAS_STACK);
                 sp = min(sp + 1u, TLAS_STACK - 1u);
             }
             let slot_index = (offset - 24u) ^ (oct & 0xffu);
             let relative = countOneBits(hits_imask & ~(0xffffffffu << slot_index));
+            if (TRAVERSAL_COUNTERS) {
+                tc_nodes += 1u;
+            }
             let tmax = select(best.t, 3.4e38, best.t < 0.0);
             let nh = intersect_node(params.tlas_node_offset + current.x + relative, ray.origin, inv_dir, ray.tmin, tmax, oct);
             current.x = nh.child_base;

@@ -12,18 +12,34 @@
 //!include inc/walk_queue.wgsl
 
 // The path tracer: one invocation per pixel, `pc.sample_count` camera samples per dispatch for the
-// lighting `pc.light`. Unidirectional path tracing with next-event estimation of the environment,
-// MIS (power heuristic) against BSDF sampling, Russian roulette after `params.rr_depth` bounces.
-// Radiance of paths that leave the subject without touching a non-lens surface is the background
-// and is not recorded (the sample contract: background = 0 where the mask is 0).
+// `pc.count` lightings from `pc.light` on (0 counts as 1). Unidirectional path tracing with
+// next-event estimation of the environment, MIS (power heuristic) against BSDF sampling, Russian
+// roulette after `params.rr_depth` bounces. Radiance of paths that leave the subject without
+// touching a non-lens surface is the background and is not recorded (the sample contract:
+// background = 0 where the mask is 0).
+//
+// One path serves every lighting of the dispatch: where it goes does not depend on the light (BSDF
+// sampling, roulette on the throughput), only what it gathers does. Each vertex casts one NEE
+// shadow ray per lighting from that lighting's own distribution, and an escaped ray adds each
+// lighting's radiance with that lighting's MIS weight, so every lighting gets the estimator it would
+// get rendered alone (tests/shared_paths.rs compares the two).
 //
 // Accumulators: accum_lit[light * pixels + p] += radiance; with pc.write_aux, accum_aux[4p..4p+4]
 // += (albedo, coverage), (normal, 0), (normal_lens = lens normal or normal, lens coverage), (unused).
+// An invocation that owns its pixel adds each finite contribution to them where it arises (a
+// non-finite one would poison the pixel's sum for good, so it is dropped); a queued walk
+// (STAGE_WALKS, always one lighting) returns its path's for the gather stage.
 
 const SHADOW_LENS_LAYERS: u32 = 4u;
 
+// The traversal counters' per-pixel words in `counters` (integrator_counters only; the renderer
+// sizes the buffer): rays, node tests, primitive tests, BLAS entries, deepest stack, overflows.
+const TC_FIRST: u32 = 4u;
+const TC_WORDS: u32 = 6u;
+
 // The appendix passes (pc.passes != 0; the renderer binds their accumulator at probe_out):
-// PASS_VEC4S per pixel for the dispatch's lighting: diffuse, specular, sss, coat, sheen (rgb),
+// PASS_VEC4S per pixel and lighting of the dispatch (slot k = lighting pc.light + k at
+// PASS_VEC4S * (k * pixels + p)): diffuse, specular, sss, coat, sheen (rgb),
 // (direct light with visibility, without it, 0, 0) as luminance for the shadow pass. Every
 // contribution of a path goes to the lobe family sampled at its first non-delta vertex, NEE
 // there by each family's own f; a lobe's share of a sampled continuation is its f over the
@@ -63,14 +79,6 @@ struct Split {
     sheen: vec3<f32>,
 };
 
-fn split_add(ps: ptr<function, Passes>, s: Split, c: vec3<f32>) {
-    (*ps).diffuse += c * s.diffuse;
-    (*ps).specular += c * s.specular;
-    (*ps).sss += c * s.sss;
-    (*ps).coat += c * s.coat;
-    (*ps).sheen += c * s.sheen;
-}
-
 fn safe_ratio(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
     return select(vec3<f32>(0.0), a / b, b > vec3<f32>(0.0));
 }
@@ -78,6 +86,46 @@ fn safe_ratio(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
 fn split_of(l: Lobes) -> Split {
     let f = lobes_sum(l);
     return Split(safe_ratio(l.diffuse, f), safe_ratio(l.specular, f), vec3<f32>(0.0), safe_ratio(l.coat, f), safe_ratio(l.sheen, f));
+}
+
+fn finite3(c: vec3<f32>) -> bool {
+    return all(c == c) && max3(abs(c)) < 3.0e38;
+}
+
+fn shared_lightings() -> u32 {
+    return max(pc.count, 1u);
+}
+
+// Radiance `c` of lighting slot `slot` at pixel `p` (see the accumulators above).
+fn deposit_lit(p: u32, slot: u32, c: vec3<f32>, radiance: ptr<function, vec3<f32>>) {
+    if (pc.mode == STAGE_WALKS) {
+        *radiance += c;
+    } else if (finite3(c)) {
+        accum_lit[(pc.light + slot) * params.width * params.height + p] += vec4<f32>(c, 0.0);
+    }
+}
+
+// Pass contributions `q` of lighting slot `slot` at pixel `p`.
+fn deposit_passes(p: u32, slot: u32, q: Passes, ps: ptr<function, Passes>) {
+    if (pc.mode == STAGE_WALKS) {
+        passes_add(ps, q);
+        return;
+    }
+    let ok = finite3(q.diffuse) && finite3(q.specular) && finite3(q.sss) && finite3(q.coat)
+        && finite3(q.sheen) && finite3(vec3<f32>(q.direct, q.unshadowed, 0.0));
+    if (ok) {
+        let b = PASS_VEC4S * (slot * params.width * params.height + p);
+        probe_out[b] += vec4<f32>(q.diffuse, 0.0);
+        probe_out[b + 1u] += vec4<f32>(q.specular, 0.0);
+        probe_out[b + 2u] += vec4<f32>(q.sss, 0.0);
+        probe_out[b + 3u] += vec4<f32>(q.coat, 0.0);
+        probe_out[b + 4u] += vec4<f32>(q.sheen, 0.0);
+        probe_out[b + 5u] += vec4<f32>(q.direct, q.unshadowed, 0.0, 0.0);
+    }
+}
+
+fn split_passes(s: Split, c: vec3<f32>) -> Passes {
+    return Passes(c * s.diffuse, c * s.specular, c * s.sss, c * s.coat, c * s.sheen, 0.0, 0.0);
 }
 
 // Where trace_path starts: a camera ray, or (STAGE_WALKS) the exit point of a parked walk.
@@ -150,9 +198,11 @@ fn shadow_transmittance(origin_in: vec3<f32>, dir: vec3<f32>, rays: ptr<function
 }
 
 // `defer_slot`: NO_SLOT walks where the path picks a subsurface lobe; anything else parks the
-// path there in that job slot (STAGE_PATHS) and ends it.
-fn trace_path(start: PathStart, p: u32, sample: u32, light: u32, defer_slot: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>, ps: ptr<function, Passes>) -> vec3<f32> {
+// path there in that job slot (STAGE_PATHS) and ends it. Contributions go through deposit_*; the
+// returned radiance and *ps are a queued walk's (STAGE_WALKS), zero otherwise.
+fn trace_path(start: PathStart, p: u32, sample: u32, defer_slot: u32, rng: ptr<function, Rng>, rays: ptr<function, u32>, ps: ptr<function, Passes>) -> vec3<f32> {
     let want_passes = pc.passes != 0u;
+    let lightings = shared_lightings();
     var split = start.split;
     var split_set = start.split_set;
     var ray = start.ray;
@@ -189,17 +239,20 @@ fn trace_path(start: PathStart, p: u32, sample: u32, light: u32, defer_slot: u32
             }
             if (hit.t < 0.0) {
                 if (!only_lens) {
-                    let le = env_eval(light, ray.dir);
-                    var w = 1.0;
-                    if (!prev_delta) {
-                        w = power_heuristic(prev_pdf, env_pdf(light, ray.dir));
-                    } else if (through_lenses) {
-                        w = power_heuristic(nee_pdf, env_pdf(light, ray.dir));
-                    }
-                    let c = throughput * le * w;
-                    radiance += c;
-                    if (want_passes) {
-                        split_add(ps, split, c);
+                    for (var k = 0u; k < lightings; k++) {
+                        let light = pc.light + k;
+                        let le = env_eval(light, ray.dir);
+                        var w = 1.0;
+                        if (!prev_delta) {
+                            w = power_heuristic(prev_pdf, env_pdf(light, ray.dir));
+                        } else if (through_lenses) {
+                            w = power_heuristic(nee_pdf, env_pdf(light, ray.dir));
+                        }
+                        let c = throughput * le * w;
+                        deposit_lit(p, k, c, &radiance);
+                        if (want_passes) {
+                            deposit_passes(p, k, split_passes(split, c), ps);
+                        }
                     }
                 }
                 break;
@@ -222,9 +275,16 @@ fn trace_path(start: PathStart, p: u32, sample: u32, light: u32, defer_slot: u32
             break;
         }
 
-        // Next-event estimation of the environment.
-        if (!delta) {
-            let ls = env_sample(light, rng_next_u32(rng), vec3<f32>(rng_next(rng), rng_next2(rng)));
+        // Next-event estimation of each lighting, one shadow ray each.
+        for (var k = 0u; k < lightings; k++) {
+            if (delta) {
+                // Keep the random stream aligned whatever the material, for stable noise across lightings.
+                _ = rng_next_u32(rng);
+                _ = rng_next(rng);
+                _ = rng_next2(rng);
+                continue;
+            }
+            let ls = env_sample(pc.light + k, rng_next_u32(rng), vec3<f32>(rng_next(rng), rng_next2(rng)));
             if (ls.pdf > 0.0 && (sp.fibre || dot(ls.dir, sp.ng) > 0.0)) {
                 let wi = to_local(sp.frame, ls.dir);
                 let e = bsdf_eval(sp.surface, wo, wi);
@@ -232,29 +292,21 @@ fn trace_path(start: PathStart, p: u32, sample: u32, light: u32, defer_slot: u32
                     let vis = shadow_transmittance(spawn_origin(sp, ls.dir), ls.dir, rays);
                     let w = power_heuristic(ls.pdf, e.pdf);
                     if (vis > 0.0) {
-                        radiance += throughput * e.f_cos * ls.radiance * (vis * w / ls.pdf);
+                        deposit_lit(p, k, throughput * e.f_cos * ls.radiance * (vis * w / ls.pdf), &radiance);
                     }
                     if (want_passes) {
-                        let k = throughput * ls.radiance * (w / ls.pdf);
+                        let c = throughput * ls.radiance * (w / ls.pdf);
                         if (!split_set) {
                             let lobes = bsdf_lobes(sp.surface, wo, wi);
-                            (*ps).diffuse += lobes.diffuse * k * vis;
-                            (*ps).specular += lobes.specular * k * vis;
-                            (*ps).coat += lobes.coat * k * vis;
-                            (*ps).sheen += lobes.sheen * k * vis;
-                            (*ps).direct += luminance(e.f_cos * k) * vis;
-                            (*ps).unshadowed += luminance(e.f_cos * k);
+                            deposit_passes(p, k, Passes(lobes.diffuse * c * vis, lobes.specular * c * vis, vec3<f32>(0.0),
+                                lobes.coat * c * vis, lobes.sheen * c * vis, luminance(e.f_cos * c) * vis,
+                                luminance(e.f_cos * c)), ps);
                         } else {
-                            split_add(ps, split, e.f_cos * k * vis);
+                            deposit_passes(p, k, split_passes(split, e.f_cos * c * vis), ps);
                         }
                     }
                 }
             }
-        } else {
-            // Keep the random stream aligned whatever the material, for stable noise across lightings.
-            _ = rng_next_u32(rng);
-            _ = rng_next(rng);
-            _ = rng_next2(rng);
         }
 
         let u_lobe = rng_next(rng);
@@ -405,8 +457,6 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     }
     let pixels = params.width * params.height;
     var rays = 0u;
-    var sum = vec3<f32>(0.0);
-    var passes = passes_zero();
     for (var i = 0u; i < iterations; i++) {
         let s = pc.sample_start + i;
         var rng: Rng;
@@ -427,21 +477,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         var ps = passes_zero();
         var l = vec3<f32>(0.0);
         if (go) {
-            l = trace_path(start, p, s, pc.light, defer_slot, &rng, &rays, &ps);
+            l = trace_path(start, p, s, defer_slot, &rng, &rays, &ps);
         }
         if (walks) {
             // The gather stage filters and adds it, one writer per pixel.
             job_finish(job, l, ps);
-        } else if (all(l == l) && max3(l) < 3.0e38) {
-            // A non-finite sample would poison the pixel's sum for good: drop it.
-            sum += l;
-            if (pc.passes != 0u) {
-                passes_add(&passes, ps);
-            }
         }
     }
-    if (!walks) {
-        accumulate(p, sum, passes);
+    if (TRAVERSAL_COUNTERS && !walks) {
+        let b = TC_FIRST + TC_WORDS * p;
+        atomicAdd(&counters[b], rays);
+        atomicAdd(&counters[b + 1u], tc_nodes);
+        atomicAdd(&counters[b + 2u], tc_prims);
+        atomicAdd(&counters[b + 3u], tc_blas);
+        atomicMax(&counters[b + 4u], tc_depth);
+        atomicAdd(&counters[b + 5u], tc_overflow);
     }
     atomicAdd(&counters[0], rays);
 }

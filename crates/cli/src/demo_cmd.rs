@@ -76,10 +76,12 @@ fn output_from_exr(bytes: &[u8]) -> Result<RenderOutput> {
             height: h as u32,
             spp: 0,
             lightings: 2,
+            lightings_per_path: 0,
             triangles: 0,
             curve_segments: 0,
             geometry_bytes: 0,
         },
+        traversal: None,
     })
 }
 

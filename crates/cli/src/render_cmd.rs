@@ -7,11 +7,13 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lightfarm_light::{EnvTransform, Hdri};
 use lightfarm_render::gpu_scene::pack_scene;
-use lightfarm_render::output::{write_exr, write_preview_png};
+use lightfarm_render::output::{write_exr, write_preview_png, write_rgb8_png};
 use lightfarm_render::passes::Pass;
 use lightfarm_render::scene::{materials_json, Camera, Scene};
 use lightfarm_render::vulkan::{list_devices, DeviceRequest};
-use lightfarm_render::{EnvLight, RenderSettings, Renderer, WalkSchedule, RENDERER_VERSION};
+use lightfarm_render::{
+    EnvLight, LightingSchedule, RenderSettings, Renderer, WalkSchedule, RENDERER_VERSION,
+};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -64,6 +66,16 @@ pub struct RenderArgs {
     /// pixels). Same image either way; BENCHMARKS.md times both.
     #[arg(long, default_value = "megakernel")]
     walk: String,
+    /// How the lightings are traced: "shared" (each camera path serves every --hdri, one shadow
+    /// ray per lighting) or "separate" (each lighting traces its own paths). Same images within
+    /// noise; BENCHMARKS.md times both. --walk dispatch always traces them separately.
+    #[arg(long, default_value = "shared")]
+    lightings: String,
+    /// Count the BVH traversal per pixel (node and primitive tests, BLAS entries, stack depth
+    /// and overflows) and write a heat map of node tests per ray here (PNG; overflowing pixels
+    /// green). The totals go into --stats as "traversal". Costs a kernel compile and some speed.
+    #[arg(long)]
+    counters: Option<PathBuf>,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32)> {
@@ -150,11 +162,20 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if let Some(p) = &args.preview {
         ensure_parent(p, "--preview")?;
     }
+    if let Some(p) = &args.counters {
+        ensure_parent(p, "--counters")?;
+    }
     let device: DeviceRequest = args.device.parse().context("--device")?;
     let walk = WalkSchedule::parse(&args.walk).with_context(|| {
         format!(
             "--walk '{}' is not a schedule: use megakernel or dispatch",
             args.walk
+        )
+    })?;
+    let lightings = LightingSchedule::parse(&args.lightings).with_context(|| {
+        format!(
+            "--lightings '{}' is not a schedule: use shared or separate",
+            args.lightings
         )
     })?;
     let scene = Scene::load_gltf(&args.scene)
@@ -179,6 +200,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let pack_seconds = pack_start.elapsed().as_secs_f64();
     let mut renderer = Renderer::new(&device)?;
     renderer.set_walk_schedule(walk);
+    renderer.set_lighting_schedule(lightings);
+    renderer.set_traversal_counters(args.counters.is_some())?;
     tracing::info!(
         device = %renderer.device().name,
         triangles = packed.triangle_count,
@@ -188,14 +211,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
         "rendering"
     );
 
-    let bar = ProgressBar::new(args.spp as u64 * lights.len() as u64);
+    let bar = ProgressBar::new(args.spp as u64);
     bar.set_style(
         ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp·lightings  eta {eta}",
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} spp (per set of paths)  eta {eta}",
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let out = renderer.render(&packed, &lights, &settings, &mut |p| {
+        bar.set_length(p.total);
         bar.set_position(p.done)
     })?;
     bar.finish_and_clear();
@@ -215,6 +239,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let mut stats = serde_json::to_value(&out.stats)?;
     // The BVH builds and flattening, before the render's own time.
     stats["bvh_build_seconds"] = serde_json::json!(pack_seconds);
+    if let (Some(path), Some(t)) = (&args.counters, &out.traversal) {
+        stats["traversal"] = serde_json::to_value(t.summary())?;
+        write_rgb8_png(path, width, height, &t.heat_map(None))?;
+    }
     let attributes = vec![
         (
             "lightfarm.renderer".to_string(),

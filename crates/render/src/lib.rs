@@ -6,6 +6,7 @@
 //! (running the sampling routines and traversal on the device for tests), `tables` (the layered
 //! model's directional-albedo tables), `hair` (the fibre material's absorption and colour).
 
+pub mod counters;
 pub mod gpu_curves;
 pub mod gpu_env;
 pub mod gpu_scene;
@@ -16,12 +17,14 @@ pub mod passes;
 pub mod probe;
 pub mod renderer;
 pub mod scene;
+pub mod schedule;
 pub mod shaders;
 pub mod tables;
 pub mod vulkan;
 
 pub use gpu_env::EnvLight;
-pub use renderer::{RenderOutput, RenderSettings, RenderStats, Renderer, WalkSchedule};
+pub use renderer::{RenderOutput, RenderSettings, RenderStats, Renderer};
+pub use schedule::{LightingSchedule, WalkSchedule};
 
 /// Version recorded in every output (the sample's `renderer` attribute).
 pub const RENDERER_VERSION: &str = concat!("lightfarm-render ", env!("CARGO_PKG_VERSION"));

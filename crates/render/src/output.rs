@@ -185,11 +185,22 @@ pub fn write_preview_png(
         };
         (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
     };
-    let mut bytes = Vec::with_capacity(lit.len() * 3);
-    for p in lit {
-        bytes.extend([encode(p[0]), encode(p[1]), encode(p[2])]);
-    }
-    let img = image::RgbImage::from_raw(out.width, out.height, bytes)
+    let pixels: Vec<[u8; 3]> = lit
+        .iter()
+        .map(|p| [encode(p[0]), encode(p[1]), encode(p[2])])
+        .collect();
+    write_rgb8_png(path, out.width, out.height, &pixels)
+}
+
+/// An 8-bit RGB image as PNG, written atomically (a temporary file renamed into place).
+pub fn write_rgb8_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[[u8; 3]],
+) -> std::result::Result<(), RenderError> {
+    let bytes: Vec<u8> = pixels.iter().flatten().copied().collect();
+    let img = image::RgbImage::from_raw(width, height, bytes)
         .ok_or_else(|| out_err(path, "image size mismatch"))?;
     let tmp = temp_path(path);
     img.save_with_format(&tmp, image::ImageFormat::Png)

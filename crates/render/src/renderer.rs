@@ -5,11 +5,13 @@
 use std::sync::Arc;
 use std::time::Instant;
 
+use crate::counters::{TraversalCounts, TC_FIRST, TC_WORDS};
 use crate::gpu_env::{pack_envs, EnvLight, PackedEnv};
 use crate::gpu_scene::PackedScene;
 use crate::gpu_types::{Params, Push, PASS_VEC4S};
 use crate::passes::{LitPasses, Pass};
 use crate::scene::Camera;
+use crate::schedule::{LightingSchedule, WalkSchedule};
 use crate::shaders;
 use crate::vulkan::{ComputeKernel, DeviceInfo, DeviceRequest, GpuBuffer, GpuContext};
 use crate::RenderError;
@@ -76,6 +78,8 @@ pub struct RenderStats {
     pub height: u32,
     pub spp: u32,
     pub lightings: usize,
+    /// Lightings traced on one set of camera paths (1 when traced separately).
+    pub lightings_per_path: usize,
     pub triangles: usize,
     /// Fibre segments (hair, eyebrows) over all curve sets.
     pub curve_segments: usize,
@@ -102,6 +106,8 @@ pub struct RenderOutput {
     /// (crate::passes::id_table); computed always, written when `pass_set` has `Id`.
     pub id: Vec<u32>,
     pub stats: RenderStats,
+    /// The traversal counters, when the renderer counted (`Renderer::set_traversal_counters`).
+    pub traversal: Option<TraversalCounts>,
 }
 
 /// Progress of a render, reported after every dispatch.
@@ -177,28 +183,6 @@ pub(crate) fn camera_params(settings: &RenderSettings) -> ([f32; 4], [f32; 4], [
     )
 }
 
-/// Where a subsurface random walk runs (shaders/inc/walk_queue.wgsl). Both give the same paths
-/// from the same random streams; only the order of the work differs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum WalkSchedule {
-    /// In the path's own invocation, where it picks the subsurface lobe.
-    #[default]
-    Megakernel,
-    /// Parked and queued by the path dispatch, run side by side by a dispatch of their own,
-    /// then gathered per pixel (three dispatches per round of samples).
-    Dispatch,
-}
-
-impl WalkSchedule {
-    pub fn parse(name: &str) -> Option<WalkSchedule> {
-        match name {
-            "megakernel" => Some(WalkSchedule::Megakernel),
-            "dispatch" => Some(WalkSchedule::Dispatch),
-            _ => None,
-        }
-    }
-}
-
 /// Paths per round of the walk-dispatch schedule: its job slots (JOB_VEC4S vec4s plus one
 /// queue entry each, 192 bytes) must fit lavapipe's 128 MiB storage-buffer range.
 const DISPATCH_PATHS: u64 = 1 << 19;
@@ -212,6 +196,10 @@ pub struct Renderer {
     integrator: ComputeKernel,
     tables: GpuBuffer,
     walk: WalkSchedule,
+    lightings: LightingSchedule,
+    /// The integrator with traversal counters, compiled on first use.
+    counting: Option<ComputeKernel>,
+    count: bool,
 }
 
 impl Renderer {
@@ -230,6 +218,9 @@ impl Renderer {
             integrator,
             tables,
             walk: WalkSchedule::default(),
+            lightings: LightingSchedule::default(),
+            counting: None,
+            count: false,
         };
         renderer.warm_up()?;
         Ok(renderer)
@@ -261,6 +252,33 @@ impl Renderer {
 
     pub fn walk_schedule(&self) -> WalkSchedule {
         self.walk
+    }
+
+    /// Chooses whether the lightings of a render share their camera paths (the default) for the
+    /// renders that follow. The walk-dispatch schedule always traces them separately.
+    pub fn set_lighting_schedule(&mut self, lightings: LightingSchedule) {
+        self.lightings = lightings;
+    }
+
+    pub fn lighting_schedule(&self) -> LightingSchedule {
+        self.lightings
+    }
+
+    /// Turns the per-pixel traversal counters (crate::counters) on or off for the renders that
+    /// follow. Their kernel is compiled on first use (seconds on lavapipe); it casts the same
+    /// rays as the production kernel, a little slower.
+    pub fn set_traversal_counters(&mut self, on: bool) -> Result<(), RenderError> {
+        if on && self.counting.is_none() {
+            self.counting = Some(ComputeKernel::new(
+                &self.ctx,
+                "integrator with traversal counters",
+                &shaders::integrator_counters(),
+                shaders::NUM_BINDINGS,
+                std::mem::size_of::<Push>() as u32,
+            )?);
+        }
+        self.count = on;
+        Ok(())
     }
 
     pub fn context(&self) -> &Arc<GpuContext> {
@@ -314,18 +332,55 @@ impl Renderer {
             pixels * lights.len() as u64 * 16,
         )?;
         let aux = GpuBuffer::zeroed(&self.ctx, "pass accumulator", pixels * 4 * 16)?;
-        let counters = GpuBuffer::zeroed(&self.ctx, "ray counter", 16)?;
+        let kernel = match (&self.counting, self.count) {
+            (Some(k), true) => k,
+            _ => &self.integrator,
+        };
+        let counting = self.count;
+        let counters = GpuBuffer::zeroed(
+            &self.ctx,
+            "ray counter",
+            if counting {
+                (TC_FIRST as u64 + TC_WORDS as u64 * pixels) * 4
+            } else {
+                16
+            },
+        )?;
         let dispatch = self.walk == WalkSchedule::Dispatch;
+        if dispatch && counting {
+            return Err(RenderError::InvalidSettings(
+                "traversal counters count the megakernel's rays: render without the \
+                 walk-dispatch schedule to count them"
+                    .into(),
+            ));
+        }
         if dispatch && pixels > DISPATCH_PATHS {
             return Err(RenderError::InvalidSettings(format!(
                 "{w}x{h} is more than the {DISPATCH_PATHS} pixels the walk-dispatch schedule \
                  holds: render it with the megakernel (the default)"
             )));
         }
-        // About a million paths per dispatch: long enough to keep a GPU busy, short enough for
-        // a responsive progress bar on lavapipe and for the ray counter (u32) not to wrap. The
-        // walk-dispatch schedule holds half that many in its job slots.
-        let paths = if dispatch { DISPATCH_PATHS } else { 1 << 20 };
+        // The passes' accumulator holds one group of lightings at a time (read back after it),
+        // sized to what one storage buffer may span.
+        let split = Pass::needs_split(&settings.passes);
+        let pass_bytes = pixels * PASS_VEC4S as u64 * 16;
+        let group = if dispatch || self.lightings == LightingSchedule::Separate {
+            1
+        } else if split {
+            (self.ctx.max_storage_buffer_range() / pass_bytes).clamp(1, lights.len() as u64)
+                as usize
+        } else {
+            lights.len()
+        };
+        // About a million paths per dispatch (fewer as more lightings share them): long enough
+        // to keep a GPU busy, short enough for a responsive progress bar on lavapipe and for the
+        // ray counter (u32) not to wrap. The walk-dispatch schedule holds half that many in its
+        // job slots.
+        let paths = if dispatch {
+            DISPATCH_PATHS
+        } else {
+            (2 << 20) / (1 + group as u64)
+        };
         let per_dispatch = (paths / pixels).clamp(1, settings.spp as u64) as u32;
         // The integrator's probe input is the walk-dispatch schedule's job slots.
         let jobs = GpuBuffer::zeroed(
@@ -337,25 +392,22 @@ impl Renderer {
                 16
             },
         )?;
-        // The passes' accumulator holds one lighting at a time (read back after it), so its
-        // size does not grow with the number of lightings.
-        let split = Pass::needs_split(&settings.passes);
         let pass_acc = GpuBuffer::zeroed(
             &self.ctx,
             "pass accumulator",
-            if split {
-                pixels * PASS_VEC4S as u64 * 16
-            } else {
-                16
-            },
+            if split { pass_bytes * group as u64 } else { 16 },
         )?;
         let bindings = bound.bindings([&lit, &aux, &counters, &jobs, &pass_acc], &self.tables);
         let mut lit_passes = Vec::new();
         let groups = [w.div_ceil(8), h.div_ceil(8), 1];
-        let total = settings.spp as u64 * lights.len() as u64;
+        let groups_of_lights: Vec<(u32, u32)> = (0..lights.len())
+            .step_by(group)
+            .map(|first| (first as u32, group.min(lights.len() - first) as u32))
+            .collect();
+        let total = settings.spp as u64 * groups_of_lights.len() as u64;
         let mut done = 0u64;
         let mut rays = 0u64;
-        for light in 0..lights.len() as u32 {
+        for &(light, shared) in &groups_of_lights {
             let mut s = 0u32;
             while s < settings.spp {
                 let count = per_dispatch.min(settings.spp - s);
@@ -363,6 +415,7 @@ impl Renderer {
                     sample_start: s,
                     sample_count: count,
                     light,
+                    count: shared,
                     write_aux: (light == 0) as u32,
                     passes: split as u32,
                     ..Default::default()
@@ -370,12 +423,8 @@ impl Renderer {
                 if dispatch {
                     let stage = |mode: u32| Push { mode, ..push };
                     let slots = count as u64 * pixels;
-                    self.integrator.dispatch(
-                        &bindings,
-                        bytemuck::bytes_of(&stage(STAGE_PATHS)),
-                        groups,
-                    )?;
-                    self.integrator.dispatch(
+                    kernel.dispatch(&bindings, bytemuck::bytes_of(&stage(STAGE_PATHS)), groups)?;
+                    kernel.dispatch(
                         &bindings,
                         bytemuck::bytes_of(&Push {
                             write_aux: 0,
@@ -383,15 +432,12 @@ impl Renderer {
                         }),
                         [slots.div_ceil(64) as u32, 1, 1],
                     )?;
-                    self.integrator.dispatch(
-                        &bindings,
-                        bytemuck::bytes_of(&stage(STAGE_GATHER)),
-                        groups,
-                    )?;
+                    kernel.dispatch(&bindings, bytemuck::bytes_of(&stage(STAGE_GATHER)), groups)?;
                 } else {
-                    self.integrator
-                        .dispatch(&bindings, bytemuck::bytes_of(&push), groups)?;
+                    kernel.dispatch(&bindings, bytemuck::bytes_of(&push), groups)?;
                 }
+                // With counters on this reads the per-pixel words too; they accumulate across
+                // dispatches, only the first four are reset.
                 let c: Vec<u32> = counters.read()?;
                 rays += c[0] as u64;
                 counters.write(&[0u32; 4])?;
@@ -401,15 +447,23 @@ impl Renderer {
             }
             if split {
                 let acc: Vec<[f32; 4]> = pass_acc.read()?;
-                lit_passes.push(LitPasses::resolve(
-                    &acc,
-                    pixels as usize,
-                    settings.spp as f32,
-                ));
-                pass_acc.write(&vec![[0f32; 4]; pixels as usize * PASS_VEC4S])?;
+                let per_light = pixels as usize * PASS_VEC4S;
+                for slot in acc.chunks_exact(per_light).take(shared as usize) {
+                    lit_passes.push(LitPasses::resolve(
+                        slot,
+                        pixels as usize,
+                        settings.spp as f32,
+                    ));
+                }
+                pass_acc.write(&vec![[0f32; 4]; acc.len()])?;
             }
         }
 
+        let traversal = if counting {
+            Some(TraversalCounts::from_words(&counters.read()?, w, h))
+        } else {
+            None
+        };
         let lit_sum: Vec<[f32; 4]> = lit.read()?;
         let aux_sum: Vec<[f32; 4]> = aux.read()?;
         let spp = settings.spp as f32;
@@ -479,10 +533,12 @@ impl Renderer {
                 height: h,
                 spp: settings.spp,
                 lightings: lights.len(),
+                lightings_per_path: group,
                 triangles: scene.triangle_count,
                 curve_segments: scene.segment_count,
                 geometry_bytes: scene.geometry_bytes(),
             },
+            traversal,
         })
     }
 }

@@ -12,6 +12,14 @@ pub fn integrator() -> Vec<u32> {
     words(include_bytes!(concat!(env!("OUT_DIR"), "/integrator.spv")))
 }
 
+/// The path tracer with the per-pixel traversal counters (crate::counters).
+pub fn integrator_counters() -> Vec<u32> {
+    words(include_bytes!(concat!(
+        env!("OUT_DIR"),
+        "/integrator_counters.spv"
+    )))
+}
+
 /// Sampling probes (BSDF and environment sampling, run by the tests).
 pub fn probe() -> Vec<u32> {
     words(include_bytes!(concat!(env!("OUT_DIR"), "/probe.spv")))

@@ -1,5 +1,7 @@
 //! The walk-dispatch schedule (walks parked, queued and run by a dispatch of their own) renders
 //! the megakernel's paths: the same rays, the same image and passes up to float summation order.
+//! Its job slots hold one lighting, so it traces lightings separately: the megakernel it is
+//! compared with does too (tests/shared_paths.rs compares shared and separate lightings).
 
 mod common;
 
@@ -8,7 +10,9 @@ use lightfarm_render::gpu_scene::pack_scene;
 use lightfarm_render::passes::Pass;
 use lightfarm_render::scene::{shapes, Camera, Material, MaterialModel, Scene};
 use lightfarm_render::vulkan::DeviceRequest;
-use lightfarm_render::{RenderError, RenderOutput, RenderSettings, Renderer, WalkSchedule};
+use lightfarm_render::{
+    LightingSchedule, RenderError, RenderOutput, RenderSettings, Renderer, WalkSchedule,
+};
 
 /// A skin sphere (the paper's preset) on a diffuse floor, with a lens in front of part of it:
 /// walks, bounces between skin and floor (walks after the first), refraction and shadows.
@@ -69,9 +73,11 @@ fn close(a: &[[f32; 3]], b: &[[f32; 3]], what: &str) {
 fn the_walk_dispatch_renders_the_megakernels_paths() {
     let mut dispatch = Renderer::new(&DeviceRequest::Auto).expect("a Vulkan device");
     dispatch.set_walk_schedule(WalkSchedule::Dispatch);
-    assert_eq!(common::renderer().walk_schedule(), WalkSchedule::Megakernel);
+    let mut megakernel = Renderer::new(&DeviceRequest::Auto).expect("a Vulkan device");
+    megakernel.set_lighting_schedule(LightingSchedule::Separate);
+    assert_eq!(megakernel.walk_schedule(), WalkSchedule::Megakernel);
     let (size, spp) = (24, 8);
-    let a = render(common::renderer(), size, spp).expect("megakernel");
+    let a = render(&megakernel, size, spp).expect("megakernel");
     let b = render(&dispatch, size, spp).expect("walk dispatch");
     println!(
         "megakernel {} rays in {:.2} s, walk dispatch {} rays in {:.2} s",

@@ -1,0 +1,157 @@
+//! The traversal counters (crates/render/src/counters.rs, `integrator_counters`): exact counts
+//! where they are known, the same image as the production kernel, and the ICT heads — 35× slower
+//! per ray than the other heads on an H100 (BENCHMARKS.md) — costing the traversal about what a
+//! comparable scan costs, with no stack overflow.
+
+mod common;
+
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+use lightfarm_render::counters::TraversalSummary;
+use lightfarm_render::gpu_scene::pack_scene;
+use lightfarm_render::scene::{shapes, Camera, Scene};
+use lightfarm_render::vulkan::DeviceRequest;
+use lightfarm_render::{RenderOutput, RenderSettings, Renderer};
+
+fn counting() -> Renderer {
+    let mut r = Renderer::new(&DeviceRequest::Auto).expect("a Vulkan device");
+    r.set_traversal_counters(true)
+        .expect("the counters' kernel");
+    r
+}
+
+fn render(
+    r: &Renderer,
+    scene: &Scene,
+    camera: Camera,
+    size: u32,
+    spp: u32,
+    max_depth: u32,
+) -> RenderOutput {
+    let settings = RenderSettings {
+        width: size,
+        height: size,
+        spp,
+        seed: 3,
+        max_depth,
+        rr_depth: 5,
+        camera,
+        passes: Vec::new(),
+    };
+    let packed = pack_scene(scene).expect("pack");
+    r.render(
+        &packed,
+        &[common::constant_light(1.0)],
+        &settings,
+        &mut |_| {},
+    )
+    .expect("render")
+}
+
+#[test]
+fn rays_that_miss_test_the_root_only_and_rays_onto_the_sphere_enter_its_blas() {
+    // One sphere in the middle of the image: a camera ray that misses its box ends after the
+    // TLAS root's test; a camera ray onto the sphere enters its BLAS, and so do the shadow and
+    // bounce rays from it except where the spawn offset puts them just outside the box (where
+    // the sphere touches its box).
+    let r = counting();
+    let spp = 4;
+    let out = render(
+        &r,
+        &common::sphere_scene(0.5),
+        common::front_camera(),
+        32,
+        spp,
+        2,
+    );
+    let t = out.traversal.expect("counters");
+    let (mut missed, mut hit) = (0, 0);
+    for p in 0..32 * 32 {
+        assert_eq!(t.overflows[p], 0);
+        if out.mask[p] == 0.0 && t.blas[p] == 0 {
+            assert_eq!(
+                (t.rays[p], t.nodes[p], t.prims[p]),
+                (spp, spp, 0),
+                "background pixel {p}: rays, node tests, primitive tests"
+            );
+            missed += 1;
+        } else if out.mask[p] == 1.0 {
+            assert!(t.rays[p] > spp, "pixel {p}: shadow and bounce rays");
+            assert!(
+                (spp..=t.rays[p]).contains(&t.blas[p]),
+                "pixel {p}: {} BLAS entries for {} rays",
+                t.blas[p],
+                t.rays[p]
+            );
+            assert!(
+                t.nodes[p] >= 2 * t.rays[p] && t.prims[p] >= spp,
+                "pixel {p}: {} nodes",
+                t.nodes[p]
+            );
+            hit += 1;
+        }
+    }
+    assert!(
+        missed > 50 && hit > 50,
+        "{missed} background, {hit} sphere pixels"
+    );
+}
+
+#[test]
+fn counting_renders_the_production_kernels_image() {
+    let mut scene = common::sphere_scene(0.7);
+    scene.add_mesh_instance(
+        shapes::quad(3.0, 3.0),
+        common::material(0.5, 0.5),
+        Mat4::from_translation(Vec3::new(0.0, -0.5, 0.0))
+            * Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2),
+    );
+    let a = render(common::renderer(), &scene, common::front_camera(), 24, 4, 8);
+    let b = render(&counting(), &scene, common::front_camera(), 24, 4, 8);
+    assert!(a.traversal.is_none());
+    assert_eq!(a.stats.rays, b.stats.rays, "the same rays");
+    assert_eq!(a.lit, b.lit, "the same image");
+    let t = b.traversal.expect("counters").summary();
+    assert_eq!(t.rays, b.stats.rays, "every ray counted once");
+}
+
+fn head(name: &str) -> (Scene, Camera) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../assets/heads")
+        .join(name);
+    let scene = Scene::load_gltf(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let (min, max) = scene.world_bounds().expect("bounds");
+    (scene, Camera::frame_bounds(min, max, 1.0))
+}
+
+fn head_counts(r: &Renderer, name: &str) -> (TraversalSummary, usize) {
+    let (scene, camera) = head(name);
+    let out = render(r, &scene, camera, 32, 4, 8);
+    let t = out.traversal.expect("counters").summary();
+    println!("{name}: {} triangles, {t:?}", out.stats.triangles);
+    (t, out.stats.triangles)
+}
+
+#[test]
+fn the_ict_heads_cost_the_traversal_what_a_comparable_scan_costs() {
+    let r = counting();
+    let (scan, scan_tris) = head_counts(&r, "mh_head_01_f_young_caucasian.glb");
+    let (lee, _) = head_counts(&r, "LeePerrySmith_textured.glb");
+    for ict in ["ict_head_seed7_1.glb", "ict_head_seed7_2.glb"] {
+        let (t, tris) = head_counts(&r, ict);
+        assert_eq!(t.overflows, 0, "{ict}: stack overflows");
+        assert!(t.max_depth < 24, "{ict}: stack depth {}", t.max_depth);
+        // A BVH's cost per ray grows with the log of its size: allow 2× for the other mesh,
+        // whatever its triangle count (the ICT heads have ~3× the scans').
+        for (other, o) in [("the MakeHuman scan", &scan), ("LeePerrySmith", &lee)] {
+            let ratio = t.nodes_per_ray / o.nodes_per_ray;
+            let prims = t.prims_per_ray / o.prims_per_ray;
+            assert!(
+                (0.5..2.0).contains(&ratio) && (0.5..2.0).contains(&prims),
+                "{ict} ({tris} triangles) against {other} ({scan_tris}): node tests per ray \
+                 ×{ratio:.2}, primitive tests ×{prims:.2}"
+            );
+        }
+    }
+}

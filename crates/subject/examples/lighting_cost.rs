@@ -1,0 +1,145 @@
+//! What a sample's lightings cost with shared paths against separate ones: one dataset sample
+//! (head, hair, garment, skin, every pass of the spec) rendered with its first lighting alone,
+//! then with K lightings traced separately and on shared paths, each twice with different seeds
+//! so that the noise per lighting is measured, not assumed.
+//!
+//! ```text
+//! cargo run --release -p lightfarm-subject --example lighting_cost -- SPEC INDEX SIZE SPP [K...]
+//! ```
+//!
+//! K defaults to 2 and 8. K = 2 is the sample's own pair; more lightings add the catalog's HDRIs
+//! at further rotations. Prints a markdown table for BENCHMARKS.md: seconds per render, rays,
+//! cost against one lighting, and the noise per lighting of shared paths against separate ones
+//! (per lighting, the mean over covered pixels of (a − b)² / 2 between the two seeds; the ratio
+//! of shared to separate averaged over the K lightings, with its range) — so "cost at equal
+//! noise" is the cost times the noise ratio.
+
+use std::path::PathBuf;
+
+use lightfarm_light::{EnvTransform, Hdri};
+use lightfarm_render::gpu_scene::pack_scene;
+use lightfarm_render::vulkan::DeviceRequest;
+use lightfarm_render::{EnvLight, LightingSchedule, RenderOutput, Renderer};
+use lightfarm_scene::catalog::AssetKind;
+use lightfarm_scene::expand::expand;
+use lightfarm_scene::spec::DatasetSpec;
+use lightfarm_scene::Catalog;
+use lightfarm_subject::render::{load_lights, settings};
+
+fn luminance(c: [f32; 3]) -> f64 {
+    0.2126 * f64::from(c[0]) + 0.7152 * f64::from(c[1]) + 0.0722 * f64::from(c[2])
+}
+
+/// Per-pixel variance of lighting `l`, estimated from two seeds, averaged over covered pixels.
+fn noise(a: &RenderOutput, b: &RenderOutput, l: usize) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for p in 0..a.mask.len() {
+        if a.mask[p] > 0.99 && b.mask[p] > 0.99 {
+            sum += (luminance(a.lit[l][p]) - luminance(b.lit[l][p])).powi(2) / 2.0;
+            n += 1;
+        }
+    }
+    sum / n.max(1) as f64
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 4 {
+        return Err("usage: lighting_cost SPEC INDEX SIZE SPP [K...]".into());
+    }
+    let catalog = Catalog::builtin()?;
+    let spec = DatasetSpec::load(PathBuf::from(&args[0]))?.validate(&catalog)?;
+    let index: u64 = args[1].parse()?;
+    let size: u32 = args[2].parse()?;
+    let spp: u32 = args[3].parse()?;
+    let ks: Vec<usize> = if args.len() > 4 {
+        args[4..]
+            .iter()
+            .map(|k| k.parse())
+            .collect::<Result<_, _>>()?
+    } else {
+        vec![2, 8]
+    };
+    let sample = expand(&spec, index)?;
+    let mut assembled = lightfarm_subject::assemble(&sample, &catalog)?;
+    assembled.width = size;
+    assembled.height = size;
+    assembled.spp = spp;
+    let packed = pack_scene(&assembled.scene)?;
+    let pair = load_lights(&assembled)?;
+    let extra: Vec<Hdri> = catalog
+        .of_kind(AssetKind::Hdri)
+        .into_iter()
+        .map(|h| Hdri::load(&catalog.path_of(h)))
+        .collect::<Result<_, _>>()?;
+    let lights = |k: usize| -> Vec<EnvLight> {
+        (0..k)
+            .map(|i| match pair.get(i) {
+                Some(l) => l.clone(),
+                None => EnvLight {
+                    name: format!("extra{i}"),
+                    hdri: extra[i % extra.len()].clone(),
+                    transform: EnvTransform {
+                        rotation_deg: 47.0 * i as f32,
+                        flip: i % 2 == 1,
+                    },
+                },
+            })
+            .collect()
+    };
+    let mut shared = Renderer::new(&DeviceRequest::Auto)?;
+    shared.set_lighting_schedule(LightingSchedule::Shared);
+    let mut separate = Renderer::new(&DeviceRequest::Auto)?;
+    separate.set_lighting_schedule(LightingSchedule::Separate);
+    let base = settings(&assembled);
+    let run = |r: &Renderer, k: usize| -> Result<[RenderOutput; 2], Box<dyn std::error::Error>> {
+        let ls = lights(k);
+        let mut s = base.clone();
+        let a = r.render(&packed, &ls, &s, &mut |_| {})?;
+        s.seed = base.seed.wrapping_add(1);
+        let b = r.render(&packed, &ls, &s, &mut |_| {})?;
+        Ok([a, b])
+    };
+    eprintln!(
+        "sample {index} of {} at {size}², {spp} spp on {}: {} triangles, {} fibre segments",
+        args[0],
+        shared.device().name,
+        packed.triangle_count,
+        packed.segment_count
+    );
+    let seconds = |o: &[RenderOutput; 2]| (o[0].stats.seconds + o[1].stats.seconds) / 2.0;
+    let one = run(&separate, 1)?;
+    let t1 = seconds(&one);
+    println!("| lightings | schedule | seconds per render | M rays | cost / one lighting | noise per lighting, shared / separate (mean, range) | cost at equal noise / one lighting |");
+    println!("|---|---|---|---|---|---|---|");
+    println!(
+        "| 1 | — | {t1:.2} | {:.1} | 1.00× | — | 1.00× |",
+        one[0].stats.rays as f64 / 1e6
+    );
+    for &k in &ks {
+        let sep = run(&separate, k)?;
+        let sh = run(&shared, k)?;
+        let ratios: Vec<f64> = (0..k)
+            .map(|l| noise(&sh[0], &sh[1], l) / noise(&sep[0], &sep[1], l))
+            .collect();
+        let mean = ratios.iter().sum::<f64>() / k as f64;
+        let (lo, hi) = ratios
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &r| (a.min(r), b.max(r)));
+        let rays = |o: &[RenderOutput; 2]| o[0].stats.rays as f64 / 1e6;
+        let (ts, tp) = (seconds(&sep), seconds(&sh));
+        println!(
+            "| {k} | separate | {ts:.2} | {:.1} | {:.2}× | 1 | {:.2}× |",
+            rays(&sep),
+            ts / t1,
+            ts / t1
+        );
+        println!(
+            "| {k} | shared | {tp:.2} | {:.1} | {:.2}× | {mean:.2} ({lo:.2}–{hi:.2}) | {:.2}× |",
+            rays(&sh),
+            tp / t1,
+            tp / t1 * mean
+        );
+    }
+    Ok(())
+}
