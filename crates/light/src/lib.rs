@@ -10,6 +10,7 @@ mod hdri;
 mod lightmaps;
 mod load;
 mod mapping;
+mod olat;
 mod sampler;
 
 pub use distribution::{Distribution1D, Distribution2D};
@@ -20,4 +21,5 @@ pub use lightmaps::{
 };
 pub use load::LightError;
 pub use mapping::{dir_to_uv, uv_to_dir, EnvTransform};
+pub use olat::{olat_directions, OlatBasis, OLAT_DISC_DEG, OLAT_LIGHTS};
 pub use sampler::EnvSampler;

@@ -32,6 +32,8 @@ pub enum LightError {
     },
     #[error("environment map {} has {count} NaN or infinite channel values; fix or re-export the map with finite values", .path.display())]
     NonFinite { path: PathBuf, count: usize },
+    #[error("OLAT basis of {reason}")]
+    InvalidOlat { reason: String },
 }
 
 /// OpenEXR magic number (first four bytes of every .exr file).
