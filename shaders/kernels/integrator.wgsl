@@ -114,14 +114,18 @@ fn deposit_passes(p: u32, slot: u32, q: Passes, ps: ptr<function, Passes>) {
     let ok = finite3(q.diffuse) && finite3(q.specular) && finite3(q.sss) && finite3(q.coat)
         && finite3(q.sheen) && finite3(vec3<f32>(q.direct, q.unshadowed, 0.0));
     if (ok) {
-        let b = PASS_VEC4S * (slot * params.width * params.height + p);
-        probe_out[b] += vec4<f32>(q.diffuse, 0.0);
-        probe_out[b + 1u] += vec4<f32>(q.specular, 0.0);
-        probe_out[b + 2u] += vec4<f32>(q.sss, 0.0);
-        probe_out[b + 3u] += vec4<f32>(q.coat, 0.0);
-        probe_out[b + 4u] += vec4<f32>(q.sheen, 0.0);
-        probe_out[b + 5u] += vec4<f32>(q.direct, q.unshadowed, 0.0, 0.0);
+        passes_add_at(PASS_VEC4S * (slot * params.width * params.height + p), q);
     }
+}
+
+// Adds `q` to the pass accumulator's PASS_VEC4S vec4s from `b` on.
+fn passes_add_at(b: u32, q: Passes) {
+    probe_out[b] += vec4<f32>(q.diffuse, 0.0);
+    probe_out[b + 1u] += vec4<f32>(q.specular, 0.0);
+    probe_out[b + 2u] += vec4<f32>(q.sss, 0.0);
+    probe_out[b + 3u] += vec4<f32>(q.coat, 0.0);
+    probe_out[b + 4u] += vec4<f32>(q.sheen, 0.0);
+    probe_out[b + 5u] += vec4<f32>(q.direct, q.unshadowed, 0.0, 0.0);
 }
 
 fn split_passes(s: Split, c: vec3<f32>) -> Passes {
@@ -418,13 +422,7 @@ fn aux_passes(first: Ray, first_hit: Hit, p: u32, sample: u32, rays: ptr<functio
 fn accumulate(p: u32, sum: vec3<f32>, passes: Passes) {
     accum_lit[pc.light * params.width * params.height + p] += vec4<f32>(sum, 0.0);
     if (pc.passes != 0u) {
-        let b = PASS_VEC4S * p;
-        probe_out[b] += vec4<f32>(passes.diffuse, 0.0);
-        probe_out[b + 1u] += vec4<f32>(passes.specular, 0.0);
-        probe_out[b + 2u] += vec4<f32>(passes.sss, 0.0);
-        probe_out[b + 3u] += vec4<f32>(passes.coat, 0.0);
-        probe_out[b + 4u] += vec4<f32>(passes.sheen, 0.0);
-        probe_out[b + 5u] += vec4<f32>(passes.direct, passes.unshadowed, 0.0, 0.0);
+        passes_add_at(PASS_VEC4S * p, passes);
     }
 }
 
