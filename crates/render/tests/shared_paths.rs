@@ -8,42 +8,17 @@ mod common;
 
 use std::path::Path;
 
-use glam::{Mat4, Vec3};
+use glam::Vec3;
 use lightfarm_light::{EnvTransform, Hdri};
 use lightfarm_render::gpu_scene::pack_scene;
 use lightfarm_render::passes::{LitPasses, Pass};
-use lightfarm_render::scene::{shapes, Camera, Material, MaterialModel, Scene};
+use lightfarm_render::scene::Camera;
 use lightfarm_render::vulkan::DeviceRequest;
 use lightfarm_render::{EnvLight, LightingSchedule, RenderOutput, RenderSettings, Renderer};
 
 const SIZE: usize = 24;
 const BLOCK: usize = 6;
 const SPP: u32 = 16;
-
-/// A skin sphere on a glossy floor with a lens in front of part of it: subsurface walks, bounces
-/// between skin and floor, refraction (the through-lens MIS weight) and cast shadows.
-fn scene() -> Scene {
-    let mut scene = Scene::default();
-    let mut skin = Material {
-        name: "skin".into(),
-        base_color: [0.8, 0.5, 0.4, 1.0],
-        ..Material::default()
-    };
-    skin.apply_model(MaterialModel::Skin);
-    scene.add_mesh_instance(shapes::icosphere(0.02, 4), skin, Mat4::IDENTITY);
-    scene.add_mesh_instance(
-        shapes::quad(0.2, 0.2),
-        common::material(0.6, 0.5),
-        Mat4::from_translation(Vec3::new(0.0, -0.02, 0.0))
-            * Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2),
-    );
-    scene.add_mesh_instance(
-        shapes::icosphere(0.006, 3),
-        common::clear_glass("lens"),
-        Mat4::from_translation(Vec3::new(0.01, 0.005, 0.03)),
-    );
-    scene
-}
 
 fn park() -> EnvLight {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/hdri/rooitou_park_1k.hdr");
@@ -89,7 +64,7 @@ fn render(renderer: &Renderer, seed: u32) -> RenderOutput {
         camera,
         passes: Pass::ALL.to_vec(),
     };
-    let packed = pack_scene(&scene()).expect("pack");
+    let packed = pack_scene(&common::skin_floor_lens()).expect("pack");
     renderer
         .render(&packed, &lights(), &settings, &mut |_| {})
         .expect("render")

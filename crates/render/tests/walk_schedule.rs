@@ -5,39 +5,14 @@
 
 mod common;
 
-use glam::{Mat4, Vec3};
+use glam::Vec3;
 use lightfarm_render::gpu_scene::pack_scene;
 use lightfarm_render::passes::Pass;
-use lightfarm_render::scene::{shapes, Camera, Material, MaterialModel, Scene};
+use lightfarm_render::scene::Camera;
 use lightfarm_render::vulkan::DeviceRequest;
 use lightfarm_render::{
     LightingSchedule, RenderError, RenderOutput, RenderSettings, Renderer, WalkSchedule,
 };
-
-/// A skin sphere (the paper's preset) on a diffuse floor, with a lens in front of part of it:
-/// walks, bounces between skin and floor (walks after the first), refraction and shadows.
-fn scene() -> Scene {
-    let mut scene = Scene::default();
-    let mut skin = Material {
-        name: "skin".into(),
-        base_color: [0.8, 0.5, 0.4, 1.0],
-        ..Material::default()
-    };
-    skin.apply_model(MaterialModel::Skin);
-    scene.add_mesh_instance(shapes::icosphere(0.02, 4), skin, Mat4::IDENTITY);
-    scene.add_mesh_instance(
-        shapes::quad(0.2, 0.2),
-        common::material(0.6, 0.5),
-        Mat4::from_translation(Vec3::new(0.0, -0.02, 0.0))
-            * Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2),
-    );
-    scene.add_mesh_instance(
-        shapes::icosphere(0.006, 3),
-        common::clear_glass("lens"),
-        Mat4::from_translation(Vec3::new(0.01, 0.005, 0.03)),
-    );
-    scene
-}
 
 fn render(renderer: &Renderer, size: u32, spp: u32) -> Result<RenderOutput, RenderError> {
     let camera = Camera::look_at(Vec3::new(0.0, 0.02, 0.1), Vec3::ZERO, 30.0).expect("camera");
@@ -51,7 +26,7 @@ fn render(renderer: &Renderer, size: u32, spp: u32) -> Result<RenderOutput, Rend
         camera,
         passes: Pass::ALL.to_vec(),
     };
-    let packed = pack_scene(&scene()).expect("pack");
+    let packed = pack_scene(&common::skin_floor_lens()).expect("pack");
     let lights = [common::constant_light(1.0), common::constant_light(0.5)];
     renderer.render(&packed, &lights, &settings, &mut |_| {})
 }

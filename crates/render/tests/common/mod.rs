@@ -204,3 +204,28 @@ pub fn chi2_test(
     }
     Ok(p)
 }
+
+/// A skin sphere (the paper's preset) on a glossy floor, with a lens in front of part of it:
+/// walks, bounces between skin and floor (walks after the first), refraction and shadows.
+pub fn skin_floor_lens() -> Scene {
+    let mut scene = Scene::default();
+    let mut skin = Material {
+        name: "skin".into(),
+        base_color: [0.8, 0.5, 0.4, 1.0],
+        ..Material::default()
+    };
+    skin.apply_model(lightfarm_render::scene::MaterialModel::Skin);
+    scene.add_mesh_instance(shapes::icosphere(0.02, 4), skin, Mat4::IDENTITY);
+    scene.add_mesh_instance(
+        shapes::quad(0.2, 0.2),
+        material(0.6, 0.5),
+        Mat4::from_translation(Vec3::new(0.0, -0.02, 0.0))
+            * Mat4::from_rotation_x(-std::f32::consts::FRAC_PI_2),
+    );
+    scene.add_mesh_instance(
+        shapes::icosphere(0.006, 3),
+        clear_glass("lens"),
+        Mat4::from_translation(Vec3::new(0.01, 0.005, 0.03)),
+    );
+    scene
+}
