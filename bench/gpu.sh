@@ -106,8 +106,9 @@ print(f"{head}: {plain['seconds']:.2f} s, {plain['rays_per_second'] / 1e6:.2f} M
 PY
 done
 
-echo "## shared paths: K lightings on one set of camera paths against K separate renders"
-"$BIN/lighting_cost" examples/dataset.toml 0 512 64 2 8
+echo "## shared paths: K lightings on one set of camera paths against K separate renders,"
+echo "## and the virtual light stage (168 OLAT discs) against one lighting"
+"$BIN/lighting_cost" examples/dataset.toml 0 512 64 2 8 olat
 
 fi
 

@@ -68,13 +68,16 @@ struct EnvDesc {
     texel_offset: u32,    // into env_texels
     cond_func_offset: u32, // into env_dist: height rows of `width` values
     alias_offset: u32,     // width * height (keep probability, bitcast alias index) pairs
-    _pad0: u32,
+    kind: u32,             // ENV_MAP, or ENV_DISC (the fields above and rotation unused)
     _pad1: u32,
     flip: u32,
     cos_rot: f32,
     sin_rot: f32,
     marg_integral: f32,
     _pad: f32,
+    // ENV_DISC: world axis, 1 - cos(angular radius); radiance rgb, 1 / solid angle
+    disc: vec4<f32>,
+    disc_radiance: vec4<f32>,
 };
 
 struct Push {
@@ -96,6 +99,10 @@ const MAT_FLAG_CLEAR: u32 = 3u; // either: shadow rays and the passes look throu
 // Material models (crates/render/src/scene/mod.rs MaterialModel): 0 is the glTF
 // metallic-roughness mapping, everything above it the layered Standard Surface (layered.wgsl).
 const MODEL_GLTF: u32 = 0u;
+// Environment lights (EnvDesc.kind): a lat-long map, or a disc of constant radiance at infinity
+// (an OLAT light of the virtual light stage).
+const ENV_MAP: u32 = 0u;
+const ENV_DISC: u32 = 1u;
 // Side of the directional-albedo tables (`tables`, written once by kernels/tables.wgsl).
 const LUT_N: u32 = 32u;
 const SCENE_HAS_LENS: u32 = 1u;

@@ -1,6 +1,12 @@
 // HDR environment lights: lat-long maps with the project's convention (u = atan2(x, -z) / 2π,
 // v = acos(y) / π, +Y up), a per-light rotation about +Y and a horizontal flip, importance-sampled
-// with the piecewise-constant 2D distribution built by `lightfarm_light::EnvSampler`.
+// with the piecewise-constant 2D distribution built by `lightfarm_light::EnvSampler`. A disc light
+// (ENV_DISC) is a cone of constant radiance about a world axis, sampled uniformly inside the
+// cone: its density is proportional to its radiance, as the map's is.
+
+fn disc_inside(e: EnvDesc, d: vec3<f32>) -> bool {
+    return 1.0 - dot(d, e.disc.xyz) <= e.disc.w;
+}
 
 fn env_world_to_local(e: EnvDesc, d: vec3<f32>) -> vec3<f32> {
     // R_y(-θ): x' = cosθ x - sinθ z, z' = sinθ x + cosθ z; then the flip negates x.
@@ -45,6 +51,9 @@ fn env_texel(e: EnvDesc, uv: vec2<f32>) -> vec2<u32> {
 // sampler's pdf is built from, so MIS weights stay exact).
 fn env_eval(light: u32, d: vec3<f32>) -> vec3<f32> {
     let e = env_desc[light];
+    if (e.kind == ENV_DISC) {
+        return select(vec3<f32>(0.0), e.disc_radiance.xyz, disc_inside(e, d));
+    }
     let uv = env_dir_to_uv(env_world_to_local(e, d));
     let xy = env_texel(e, uv);
     return env_texels[e.texel_offset + xy.y * e.width + xy.x].xyz;
@@ -62,6 +71,17 @@ struct EnvSample {
 // uniformly inside the texel, so the density is exactly the piecewise-constant one of env_pdf().
 fn env_sample(light: u32, r: u32, u: vec3<f32>) -> EnvSample {
     let e = env_desc[light];
+    if (e.kind == ENV_DISC) {
+        // cos θ uniform in [1 - (1 - cos r), 1]; sin²θ from (1 - cos θ)(1 + cos θ) keeps the
+        // precision a 4° disc needs.
+        let omc = u.y * e.disc.w;
+        let cos_t = 1.0 - omc;
+        let sin_t = sqrt(max(omc * (2.0 - omc), 0.0));
+        let phi = 2.0 * PI * u.z;
+        let local = vec3<f32>(sin_t * cos(phi), sin_t * sin(phi), cos_t);
+        let dir = normalize(to_world(frame_from_normal(e.disc.xyz), local));
+        return EnvSample(dir, e.disc_radiance.w, e.disc_radiance.xyz);
+    }
     let i = uniform_index(r, e.width * e.height);
     var cell = i;
     if (u.x >= env_dist[e.alias_offset + 2u * i]) {
@@ -87,6 +107,9 @@ fn env_sample(light: u32, r: u32, u: vec3<f32>) -> EnvSample {
 
 fn env_pdf(light: u32, d: vec3<f32>) -> f32 {
     let e = env_desc[light];
+    if (e.kind == ENV_DISC) {
+        return select(0.0, e.disc_radiance.w, disc_inside(e, d));
+    }
     let uv = env_dir_to_uv(env_world_to_local(e, d));
     let xy = env_texel(e, uv);
     let sin_theta = sin(uv.y * PI);

@@ -28,6 +28,10 @@ pub struct DemoArgs {
     size: u32,
     #[arg(long, default_value_t = 32)]
     spp: u32,
+    /// Also render each sample under this many OLAT lights of the virtual light stage (0: no;
+    /// the paper's is 168), for `lightfarm relight-olat`.
+    #[arg(long, default_value_t = 0)]
+    olat: u32,
     #[arg(long, env = "LIGHTFARM_DEVICE", default_value = "auto")]
     device: String,
     /// Training steps after rendering (0 skips training and relighting).
@@ -43,8 +47,8 @@ fn spec(a: &DemoArgs) -> String {
     format!(
         "name = \"demo\"\nseed = 2022\ncount = {}\nwidth = {}\nheight = {}\nspp = {}\n\
          [subject]\nglasses_probability = 0.5\nheadset_probability = 0.15\n\
-         [split]\ntest_identities = [\"lee_perry_smith\"]\n",
-        a.count, a.size, a.size, a.spp
+         [split]\ntest_identities = [\"lee_perry_smith\"]\n[lighting]\nolat = {}\n",
+        a.count, a.size, a.size, a.spp, a.olat
     )
 }
 
@@ -80,8 +84,11 @@ fn output_from_exr(bytes: &[u8]) -> Result<RenderOutput> {
             triangles: 0,
             curve_segments: 0,
             geometry_bytes: 0,
+            olat_lights: 0,
+            olat_seconds: 0.0,
         },
         traversal: None,
+        olat: Vec::new(),
     })
 }
 

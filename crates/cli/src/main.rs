@@ -2,6 +2,7 @@
 
 mod demo_cmd;
 mod farm_cmd;
+mod olat_cmd;
 mod people_cmd;
 mod preview_cmd;
 mod render_cmd;
@@ -70,6 +71,9 @@ enum Command {
     TrainJobs(train_cmd::TrainJobsArgs),
     /// Relight a portrait with a trained model under an HDRI.
     Relight(Box<train_cmd::RelightArgs>),
+    /// Relight a sample rendered with OLAT images (`olat = 168` under [lighting]) under any
+    /// HDRI, as the weighted sum of its OLAT images (no network involved).
+    RelightOlat(Box<olat_cmd::RelightOlatArgs>),
     /// Score models on a split (MAE, MSE, SSIM, SH lighting recovery), one row each.
     Eval(train_cmd::EvalArgs),
 }
@@ -104,6 +108,7 @@ fn main() {
         Command::Train(a) => train_cmd::train(a),
         Command::TrainJobs(a) => train_cmd::train_jobs(a),
         Command::Relight(a) => train_cmd::relight(*a),
+        Command::RelightOlat(a) => olat_cmd::run(*a),
         Command::Eval(a) => train_cmd::eval(a),
     };
     if let Err(e) = result {

@@ -280,15 +280,7 @@ pub struct RelightArgs {
 }
 
 fn load_lighting(hdri: &str, assets: &Option<PathBuf>) -> Result<Lighting> {
-    let path = Path::new(hdri);
-    if path.exists() {
-        return Ok(Lighting::load(path)?);
-    }
-    let catalog = load_catalog(assets)?;
-    match catalog.get(hdri) {
-        Some(a) if a.kind == lightfarm_scene::AssetKind::Hdri => Ok(Lighting::load(&catalog.path_of(a))?),
-        _ => bail!("--hdri {hdri}: neither a file nor an HDRI id of the catalog (`lightfarm assets list` shows them)"),
-    }
+    Ok(Lighting::load(&crate::olat_cmd::hdri_path(hdri, assets)?)?)
 }
 
 pub fn relight(a: RelightArgs) -> Result<()> {

@@ -21,5 +21,5 @@ pub use lightmaps::{
 };
 pub use load::LightError;
 pub use mapping::{dir_to_uv, uv_to_dir, EnvTransform};
-pub use olat::{olat_directions, OlatBasis, OLAT_DISC_DEG, OLAT_LIGHTS};
+pub use olat::{olat_directions, olat_layer, OlatBasis, OLAT_DISC_DEG, OLAT_LIGHTS};
 pub use sampler::EnvSampler;

@@ -17,6 +17,12 @@ pub const OLAT_LIGHTS: usize = 168;
 /// Angular radius of each light's disc; well inside its share of the sphere at 168 lights
 /// (neighbours are ≥ 13° apart).
 pub const OLAT_DISC_DEG: f64 = 4.0;
+/// Name of the sample layer that holds the image under OLAT light `i` (`olat000` …; the
+/// channels are `.R`, `.G`, `.B`).
+pub fn olat_layer(i: usize) -> String {
+    format!("olat{i:03}")
+}
+
 /// Side of the sub-texel grid that measures how much of a texel a disc covers.
 const SUBSAMPLES: u32 = 8;
 
@@ -211,6 +217,47 @@ impl OlatBasis {
         out
     }
 
+    /// The relit image: Σ weightᵢ × imageᵢ per channel, as a light stage forms any lighting
+    /// from its one-light-at-a-time images (Debevec et al. 2000). `images[i]` is the render
+    /// under light i; all are the same size.
+    pub fn relight(
+        &self,
+        weights: &[[f64; 3]],
+        images: &[&[[f32; 3]]],
+    ) -> Result<Vec<[f32; 3]>, LightError> {
+        let bad = |reason: String| Err(LightError::InvalidOlat { reason });
+        if weights.len() != self.len() || images.len() != self.len() {
+            return bad(format!(
+                "{} weights and {} images for a basis of {} lights",
+                weights.len(),
+                images.len(),
+                self.len()
+            ));
+        }
+        let n = images.first().map_or(0, |i| i.len());
+        if let Some(i) = images.iter().position(|i| i.len() != n) {
+            return bad(format!(
+                "OLAT image {i} has {} pixels, image 0 has {n}",
+                images[i].len()
+            ));
+        }
+        let mut out = vec![[0f64; 3]; n];
+        for (w, img) in weights.iter().zip(images) {
+            if *w == [0.0; 3] {
+                continue;
+            }
+            for (o, p) in out.iter_mut().zip(img.iter()) {
+                for ch in 0..3 {
+                    o[ch] += w[ch] * p[ch] as f64;
+                }
+            }
+        }
+        Ok(out
+            .into_iter()
+            .map(|o| [o[0] as f32, o[1] as f32, o[2] as f32])
+            .collect())
+    }
+
     /// The light whose direction is closest to `d` (unit).
     pub fn nearest(&self, d: [f64; 3]) -> usize {
         let mut best = (f64::MIN, 0);
@@ -344,6 +391,31 @@ mod tests {
             },
         );
         assert!((0..b.len()).any(|i| (turned[i][2] - w[i][2]).abs() > 0.1));
+    }
+
+    #[test]
+    fn relighting_sums_the_weighted_images_and_refuses_a_mismatch() {
+        let b = OlatBasis::new(4, 10.0, 256, 128).expect("basis");
+        let imgs: Vec<Vec<[f32; 3]>> = (0..4)
+            .map(|i| vec![[i as f32, 1.0, 2.0 * i as f32]; 3])
+            .collect();
+        let refs: Vec<&[[f32; 3]]> = imgs.iter().map(|v| v.as_slice()).collect();
+        let w = [
+            [1.0, 0.0, 0.5],
+            [0.0, 2.0, 0.0],
+            [0.25, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let out = b.relight(&w, &refs).expect("relight");
+        assert_eq!(out, vec![[0.5, 2.0, 6.0]; 3]);
+        let e = b
+            .relight(&w[..3], &refs)
+            .expect_err("3 weights")
+            .to_string();
+        assert!(e.contains("3 weights"), "{e}");
+        let short = [refs[0], refs[1], refs[2], &imgs[3][..2]];
+        let e = b.relight(&w, &short).expect_err("sizes").to_string();
+        assert!(e.contains("OLAT image 3 has 2 pixels"), "{e}");
     }
 
     #[test]

@@ -1,9 +1,9 @@
-//! Packs environment lights (HDRI + rotation/flip + sampling tables) into the flat arrays of
-//! `shaders/inc/env.wgsl`.
+//! Packs the lights at infinity — environment maps (HDRI + rotation/flip + sampling tables) and
+//! the discs of the virtual light stage — into the flat arrays of `shaders/inc/env.wgsl`.
 
-use lightfarm_light::{EnvSampler, EnvTransform, Hdri};
+use lightfarm_light::{EnvSampler, EnvTransform, Hdri, OlatBasis};
 
-use crate::gpu_types::EnvDesc;
+use crate::gpu_types::{EnvDesc, ENV_DISC, ENV_MAP};
 
 /// One lighting of a render: an HDRI and how it is oriented.
 #[derive(Clone, Debug)]
@@ -14,6 +14,68 @@ pub struct EnvLight {
     pub transform: EnvTransform,
 }
 
+/// A disc of constant radiance at infinity: one OLAT light of the virtual light stage. Rendered
+/// analytically (exact radiance, sampled uniformly inside its cone), so 168 of them cost no
+/// texel memory.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DiscLight {
+    pub name: String,
+    /// World direction towards the disc's centre (unit).
+    pub direction: [f32; 3],
+    /// Angular radius, degrees.
+    pub radius_deg: f64,
+    pub radiance: [f32; 3],
+}
+
+impl DiscLight {
+    /// Every light of `basis` in the world frame (the basis's directions are world directions:
+    /// the stage does not turn with a sample's HDRI).
+    pub fn olat(basis: &OlatBasis) -> Vec<DiscLight> {
+        let l = basis.radiance() as f32;
+        basis
+            .directions
+            .iter()
+            .enumerate()
+            .map(|(i, d)| DiscLight {
+                name: format!("olat{i:03}"),
+                direction: [d[0] as f32, d[1] as f32, d[2] as f32],
+                radius_deg: basis.disc_deg,
+                radiance: [l; 3],
+            })
+            .collect()
+    }
+
+    /// 1 − cos(radius), computed without cancellation.
+    fn one_minus_cos(&self) -> f64 {
+        let half = self.radius_deg.to_radians() * 0.5;
+        2.0 * half.sin() * half.sin()
+    }
+
+    /// The disc's solid angle, sr.
+    pub fn solid_angle(&self) -> f64 {
+        2.0 * std::f64::consts::PI * self.one_minus_cos()
+    }
+}
+
+/// One lighting of a render, borrowed.
+#[derive(Clone, Copy, Debug)]
+pub enum Lighting<'a> {
+    Map(&'a EnvLight),
+    Disc(&'a DiscLight),
+}
+
+impl<'a> From<&'a EnvLight> for Lighting<'a> {
+    fn from(l: &'a EnvLight) -> Self {
+        Lighting::Map(l)
+    }
+}
+
+impl<'a> From<&'a DiscLight> for Lighting<'a> {
+    fn from(l: &'a DiscLight) -> Self {
+        Lighting::Disc(l)
+    }
+}
+
 #[derive(Default)]
 pub struct PackedEnv {
     pub texels: Vec<[f32; 4]>,
@@ -22,8 +84,20 @@ pub struct PackedEnv {
 }
 
 pub fn pack_envs(lights: &[EnvLight]) -> PackedEnv {
+    let lightings: Vec<Lighting> = lights.iter().map(Lighting::Map).collect();
+    pack_lightings(&lightings)
+}
+
+pub fn pack_lightings(lights: &[Lighting]) -> PackedEnv {
     let mut out = PackedEnv::default();
     for light in lights {
+        let light = match light {
+            Lighting::Map(m) => m,
+            Lighting::Disc(d) => {
+                out.desc.push(disc_desc(d));
+                continue;
+            }
+        };
         let hdri = &light.hdri;
         let sampler = EnvSampler::new(hdri);
         let dist = &sampler.dist;
@@ -65,16 +139,37 @@ pub fn pack_envs(lights: &[EnvLight]) -> PackedEnv {
             texel_offset,
             cond_func_offset,
             alias_offset,
-            _pad0: 0,
+            kind: ENV_MAP,
             _pad1: 0,
             flip: light.transform.flip as u32,
             cos_rot: theta.cos(),
             sin_rot: theta.sin(),
             marg_integral: dist.marginal.integral,
-            _pad: 0.0,
+            ..Default::default()
         });
     }
     out
+}
+
+fn disc_desc(d: &DiscLight) -> EnvDesc {
+    let [x, y, z] = d.direction;
+    let len = (x * x + y * y + z * z).sqrt();
+    let axis = if len > 0.0 {
+        [x / len, y / len, z / len]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    EnvDesc {
+        kind: ENV_DISC,
+        disc: [axis[0], axis[1], axis[2], d.one_minus_cos() as f32],
+        disc_radiance: [
+            d.radiance[0],
+            d.radiance[1],
+            d.radiance[2],
+            (1.0 / d.solid_angle()) as f32,
+        ],
+        ..Default::default()
+    }
 }
 
 /// Walker's alias method (Vose's construction): for each cell, the probability of keeping it and

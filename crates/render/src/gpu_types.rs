@@ -91,14 +91,22 @@ pub struct EnvDesc {
     pub cond_func_offset: u32,
     /// width × height (probability, bitcast alias index) pairs
     pub alias_offset: u32,
-    pub _pad0: u32,
+    /// ENV_MAP (0) or ENV_DISC (1)
+    pub kind: u32,
     pub _pad1: u32,
     pub flip: u32,
     pub cos_rot: f32,
     pub sin_rot: f32,
     pub marg_integral: f32,
     pub _pad: f32,
+    /// Disc: world axis, 1 - cos(angular radius)
+    pub disc: [f32; 4],
+    /// Disc: radiance, 1 / solid angle
+    pub disc_radiance: [f32; 4],
 }
+
+pub const ENV_MAP: u32 = 0;
+pub const ENV_DISC: u32 = 1;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
@@ -123,6 +131,6 @@ const _: () = assert!(std::mem::size_of::<MaterialGpu>() == 208);
 pub const LUT_N: usize = 32;
 /// vec4s per pixel of the appendix-pass accumulator (PASS_VEC4S in integrator.wgsl).
 pub const PASS_VEC4S: usize = 6;
-const _: () = assert!(std::mem::size_of::<EnvDesc>() == 48);
+const _: () = assert!(std::mem::size_of::<EnvDesc>() == 80);
 const _: () = assert!(std::mem::size_of::<Push>() == 32);
 const _: () = assert!(std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>() == NODE_WORDS * 4);

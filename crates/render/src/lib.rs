@@ -22,7 +22,7 @@ pub mod shaders;
 pub mod tables;
 pub mod vulkan;
 
-pub use gpu_env::EnvLight;
+pub use gpu_env::{DiscLight, EnvLight, Lighting};
 pub use renderer::{RenderOutput, RenderSettings, RenderStats, Renderer};
 pub use schedule::{LightingSchedule, WalkSchedule};
 

@@ -6,6 +6,8 @@ use std::path::{Path, PathBuf};
 
 use exr::prelude::*;
 
+use lightfarm_light::olat_layer;
+
 use crate::passes::{id_table, Pass};
 use crate::renderer::RenderOutput;
 use crate::RenderError;
@@ -133,6 +135,21 @@ pub fn write_exr(
             out.id.iter().map(|v| *v as f32).collect(),
         ));
     }
+    // Half floats: 11 bits of mantissa are far below a Monte Carlo image's noise, and 168
+    // lights at 512² would be ~0.5 GB as f32.
+    for (i, img) in out.olat.iter().enumerate() {
+        let layer = olat_layer(i);
+        for (k, c) in ["R", "G", "B"].iter().enumerate() {
+            channels.push(AnyChannel::new(
+                format!("{layer}.{c}").as_str(),
+                FlatSamples::F16(
+                    img.iter()
+                        .map(|p| f16::from_f32(p[k].min(65504.0)))
+                        .collect(),
+                ),
+            ));
+        }
+    }
     let mut attrs = LayerAttributes::default();
     for (k, v) in attributes {
         attrs.other.insert(
@@ -154,8 +171,7 @@ pub fn write_exr(
     std::fs::rename(&tmp, path).map_err(|e| out_err(path, e))
 }
 
-/// A small sRGB preview of a lit layer: exposure set so the subject's mean luminance lands at
-/// 0.18 before a Reinhard curve, background black.
+/// A small sRGB preview of a lit layer (see `tonemap_srgb8`).
 pub fn write_preview_png(
     path: &Path,
     out: &RenderOutput,
@@ -165,8 +181,14 @@ pub fn write_preview_png(
         .lit
         .get(lighting)
         .ok_or_else(|| out_err(path, format!("no lighting {lighting}")))?;
+    write_rgb8_png(path, out.width, out.height, &tonemap_srgb8(lit, &out.mask))
+}
+
+/// Radiance to 8-bit sRGB for a look: exposure set so the subject's mean luminance (weighted
+/// by `mask`) lands at 0.18 before a Reinhard curve.
+pub fn tonemap_srgb8(lit: &[[f32; 3]], mask: &[f32]) -> Vec<[u8; 3]> {
     let (mut sum, mut weight) = (0.0f64, 0.0f64);
-    for (p, m) in lit.iter().zip(&out.mask) {
+    for (p, m) in lit.iter().zip(mask) {
         sum += (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]) as f64;
         weight += *m as f64;
     }
@@ -185,11 +207,9 @@ pub fn write_preview_png(
         };
         (s.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
     };
-    let pixels: Vec<[u8; 3]> = lit
-        .iter()
+    lit.iter()
         .map(|p| [encode(p[0]), encode(p[1]), encode(p[2])])
-        .collect();
-    write_rgb8_png(path, out.width, out.height, &pixels)
+        .collect()
 }
 
 /// An 8-bit RGB image as PNG, written atomically (a temporary file renamed into place).

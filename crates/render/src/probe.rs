@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use crate::gpu_env::{pack_envs, EnvLight, PackedEnv};
+use crate::gpu_env::{pack_lightings, Lighting, PackedEnv};
 use crate::gpu_scene::PackedScene;
 use crate::gpu_types::{Params, Push};
 use crate::renderer::Bound;
@@ -282,14 +282,14 @@ impl Probe {
     }
 
     /// `n` (world direction, solid-angle pdf) samples of the environment light.
-    pub fn env_samples(
+    pub fn env_samples<'a>(
         &self,
-        light: &EnvLight,
+        light: impl Into<Lighting<'a>>,
         n: usize,
         seed: u32,
     ) -> Result<Vec<([f32; 3], f32)>, RenderError> {
         check_len(n)?;
-        let env = pack_envs(std::slice::from_ref(light));
+        let env = pack_lightings(&[light.into()]);
         let push = Push {
             mode: 2,
             count: n as u32,
@@ -310,13 +310,13 @@ impl Probe {
     }
 
     /// (pdf, radiance) of the environment light for each world direction.
-    pub fn env_eval(
+    pub fn env_eval<'a>(
         &self,
-        light: &EnvLight,
+        light: impl Into<Lighting<'a>>,
         dirs: &[[f32; 3]],
     ) -> Result<Vec<(f32, [f32; 3])>, RenderError> {
         check_len(dirs.len())?;
-        let env = pack_envs(std::slice::from_ref(light));
+        let env = pack_lightings(&[light.into()]);
         let input: Vec<[f32; 4]> = dirs.iter().map(|d| [d[0], d[1], d[2], 0.0]).collect();
         let push = Push {
             mode: 3,

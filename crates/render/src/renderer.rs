@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use crate::counters::{TraversalCounts, TC_FIRST, TC_WORDS};
-use crate::gpu_env::{pack_envs, EnvLight, PackedEnv};
+use crate::gpu_env::{pack_lightings, EnvLight, Lighting, PackedEnv};
 use crate::gpu_scene::PackedScene;
 use crate::gpu_types::{Params, Push, PASS_VEC4S};
 use crate::passes::{LitPasses, Pass};
@@ -20,7 +20,10 @@ use crate::RenderError;
 /// allocations the device cannot make.
 pub const MAX_SIZE: u32 = 16384;
 pub const MAX_SPP: u32 = 1 << 20;
-pub const MAX_LIGHTS: usize = 16;
+/// Lightings of one render: the virtual light stage's 168 OLAT lights and more. Their
+/// accumulators are grouped to what one storage buffer may span, so the count is bounded by
+/// the cost of the NEE loop (one shadow ray per lighting per vertex), not by memory.
+pub const MAX_LIGHTS: usize = 1024;
 
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
@@ -85,6 +88,9 @@ pub struct RenderStats {
     pub curve_segments: usize,
     /// Geometry on the device: BVH nodes, triangle and segment data, bytes.
     pub geometry_bytes: u64,
+    /// OLAT images rendered after the lightings (`RenderOutput::olat`), and their time (s).
+    pub olat_lights: usize,
+    pub olat_seconds: f64,
 }
 
 /// The passes of one render, row-major from the top-left pixel.
@@ -108,6 +114,9 @@ pub struct RenderOutput {
     pub stats: RenderStats,
     /// The traversal counters, when the renderer counted (`Renderer::set_traversal_counters`).
     pub traversal: Option<TraversalCounts>,
+    /// The subject under each light of the OLAT basis, when its caller rendered them too
+    /// (`lightfarm_subject::render::render_sample`); written as half-float `olatNNN` layers.
+    pub olat: Vec<Vec<[f32; 3]>>,
 }
 
 /// Progress of a render, reported after every dispatch.
@@ -200,6 +209,8 @@ pub struct Renderer {
     /// The integrator with traversal counters, compiled on first use.
     counting: Option<ComputeKernel>,
     count: bool,
+    /// At most this many lightings share a camera path (None: as many as memory allows).
+    group_limit: Option<usize>,
 }
 
 impl Renderer {
@@ -221,6 +232,7 @@ impl Renderer {
             lightings: LightingSchedule::default(),
             counting: None,
             count: false,
+            group_limit: None,
         };
         renderer.warm_up()?;
         Ok(renderer)
@@ -264,6 +276,13 @@ impl Renderer {
         self.lightings
     }
 
+    /// Caps how many lightings share one set of camera paths (and one accumulator) for the
+    /// renders that follow; by default the cap is what one storage buffer may span. A smaller
+    /// cap saves device memory at the cost of tracing the paths once per group.
+    pub fn set_lightings_per_path(&mut self, limit: Option<usize>) {
+        self.group_limit = limit.map(|l| l.max(1));
+    }
+
     /// Turns the per-pixel traversal counters (crate::counters) on or off for the renders that
     /// follow. Their kernel is compiled on first use (seconds on lavapipe); it casts the same
     /// rays as the production kernel, a little slower.
@@ -297,12 +316,40 @@ impl Renderer {
         settings: &RenderSettings,
         progress: &mut dyn FnMut(Progress),
     ) -> Result<RenderOutput, RenderError> {
+        let lightings: Vec<Lighting> = lights.iter().map(Lighting::Map).collect();
+        self.render_lightings(scene, &lightings, settings, progress)
+    }
+
+    /// `render` for any mix of environment maps and disc lights (the OLAT basis).
+    pub fn render_lightings(
+        &self,
+        scene: &PackedScene,
+        lights: &[Lighting],
+        settings: &RenderSettings,
+        progress: &mut dyn FnMut(Progress),
+    ) -> Result<RenderOutput, RenderError> {
         settings.validate()?;
         if lights.is_empty() || lights.len() > MAX_LIGHTS {
             return Err(RenderError::InvalidSettings(format!(
                 "{} lightings given: pass 1..={MAX_LIGHTS} --hdri",
                 lights.len()
             )));
+        }
+        for light in lights {
+            if let Lighting::Disc(d) = light {
+                let ok = d.radius_deg > 0.0
+                    && d.radius_deg <= 90.0
+                    && d.direction.iter().all(|v| v.is_finite())
+                    && d.direction.iter().any(|v| *v != 0.0)
+                    && d.radiance.iter().all(|v| v.is_finite() && *v >= 0.0);
+                if !ok {
+                    return Err(RenderError::InvalidSettings(format!(
+                        "disc light {:?}: needs a nonzero finite direction, a radius in (0, 90] \
+                         degrees (got {}) and finite radiance >= 0 (got {:?})",
+                        d.name, d.radius_deg, d.radiance
+                    )));
+                }
+            }
         }
         let start = Instant::now();
         let (w, h) = (settings.width, settings.height);
@@ -324,13 +371,8 @@ impl Renderer {
             cam_up,
             cam_fwd,
         };
-        let env = pack_envs(lights);
+        let env = pack_lightings(lights);
         let bound = Bound::upload(&self.ctx, &params, scene, &env)?;
-        let lit = GpuBuffer::zeroed(
-            &self.ctx,
-            "radiance accumulator",
-            pixels * lights.len() as u64 * 16,
-        )?;
         let aux = GpuBuffer::zeroed(&self.ctx, "pass accumulator", pixels * 4 * 16)?;
         let kernel = match (&self.counting, self.count) {
             (Some(k), true) => k,
@@ -360,18 +402,25 @@ impl Renderer {
                  holds: render it with the megakernel (the default)"
             )));
         }
-        // The passes' accumulator holds one group of lightings at a time (read back after it),
-        // sized to what one storage buffer may span.
+        // The radiance and passes' accumulators hold one group of lightings at a time (read
+        // back after it), sized to what one storage buffer may span (128 MiB on lavapipe: 32
+        // lightings at 512²); each group traces its own camera paths.
         let split = Pass::needs_split(&settings.passes);
+        let lit_bytes = pixels * 16;
         let pass_bytes = pixels * PASS_VEC4S as u64 * 16;
+        let range = self.ctx.max_storage_buffer_range();
         let group = if dispatch || self.lightings == LightingSchedule::Separate {
             1
-        } else if split {
-            (self.ctx.max_storage_buffer_range() / pass_bytes).clamp(1, lights.len() as u64)
-                as usize
         } else {
-            lights.len()
+            let per_group = if split {
+                lit_bytes.max(pass_bytes)
+            } else {
+                lit_bytes
+            };
+            let fit = (range / per_group).clamp(1, lights.len() as u64) as usize;
+            fit.min(self.group_limit.unwrap_or(usize::MAX))
         };
+        let lit = GpuBuffer::zeroed(&self.ctx, "radiance accumulator", lit_bytes * group as u64)?;
         // About a million paths per dispatch (fewer as more lightings share them): long enough
         // to keep a GPU busy, short enough for a responsive progress bar on lavapipe and for the
         // ray counter (u32) not to wrap. The walk-dispatch schedule holds half that many in its
@@ -399,6 +448,9 @@ impl Renderer {
         )?;
         let bindings = bound.bindings([&lit, &aux, &counters, &jobs, &pass_acc], &self.tables);
         let mut lit_passes = Vec::new();
+        let mut lit_images: Vec<Vec<[f32; 3]>> = Vec::with_capacity(lights.len());
+        let spp = settings.spp as f32;
+        let n = pixels as usize;
         let groups = [w.div_ceil(8), h.div_ceil(8), 1];
         let groups_of_lights: Vec<(u32, u32)> = (0..lights.len())
             .step_by(group)
@@ -457,6 +509,17 @@ impl Renderer {
                 }
                 pass_acc.write(&vec![[0f32; 4]; acc.len()])?;
             }
+            let lit_sum: Vec<[f32; 4]> = lit.read()?;
+            for slot in lit_sum.chunks_exact(n).take(shared as usize) {
+                lit_images.push(
+                    slot.iter()
+                        .map(|v| [v[0] / spp, v[1] / spp, v[2] / spp])
+                        .collect(),
+                );
+            }
+            if shared as usize != lights.len() {
+                lit.write(&vec![[0f32; 4]; lit_sum.len()])?;
+            }
         }
 
         let traversal = if counting {
@@ -464,18 +527,7 @@ impl Renderer {
         } else {
             None
         };
-        let lit_sum: Vec<[f32; 4]> = lit.read()?;
         let aux_sum: Vec<[f32; 4]> = aux.read()?;
-        let spp = settings.spp as f32;
-        let n = pixels as usize;
-        let lit_images = (0..lights.len())
-            .map(|l| {
-                lit_sum[l * n..(l + 1) * n]
-                    .iter()
-                    .map(|v| [v[0] / spp, v[1] / spp, v[2] / spp])
-                    .collect()
-            })
-            .collect();
         let normalize = |v: [f32; 4]| {
             let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
             if len > 0.0 {
@@ -537,8 +589,11 @@ impl Renderer {
                 triangles: scene.triangle_count,
                 curve_segments: scene.segment_count,
                 geometry_bytes: scene.geometry_bytes(),
+                olat_lights: 0,
+                olat_seconds: 0.0,
             },
             traversal,
+            olat: Vec::new(),
         })
     }
 }

@@ -338,3 +338,111 @@ fn environment_sampler_matches_its_pdf_on_a_real_map() {
         "env rooitou_park: accepted a biased sampler: {biased:?}"
     );
 }
+
+/// Bin of direction `d` in a disc of axis `a` and 1 − cos(radius) `omc`: `rings` equal-area
+/// rings (uniform in 1 − cos θ) × `sectors` in azimuth; None outside the disc.
+fn disc_bin(a: [f64; 3], omc: f64, d: [f32; 3], rings: usize, sectors: usize) -> Option<usize> {
+    let d = [d[0] as f64, d[1] as f64, d[2] as f64];
+    let cos_t = a[0] * d[0] + a[1] * d[1] + a[2] * d[2];
+    // Directions a rounding error past the axis (cos θ > 1 in f32) are at the centre.
+    let ring = ((1.0 - cos_t).max(0.0) / omc * rings as f64).floor();
+    if !(0.0..rings as f64).contains(&ring) {
+        return None;
+    }
+    // Any fixed frame about the axis will do: bins are equal in area whatever its azimuth origin.
+    let t = {
+        let up = if a[1].abs() < 0.9 {
+            [0.0, 1.0, 0.0]
+        } else {
+            [1.0, 0.0, 0.0]
+        };
+        let c = [
+            up[1] * a[2] - up[2] * a[1],
+            up[2] * a[0] - up[0] * a[2],
+            up[0] * a[1] - up[1] * a[0],
+        ];
+        let l = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+        [c[0] / l, c[1] / l, c[2] / l]
+    };
+    let b = [
+        a[1] * t[2] - a[2] * t[1],
+        a[2] * t[0] - a[0] * t[2],
+        a[0] * t[1] - a[1] * t[0],
+    ];
+    let x = d[0] * t[0] + d[1] * t[1] + d[2] * t[2];
+    let y = d[0] * b[0] + d[1] * b[1] + d[2] * b[2];
+    let phi = y.atan2(x).rem_euclid(2.0 * PI);
+    let sector = ((phi / (2.0 * PI) * sectors as f64) as usize).min(sectors - 1);
+    Some(ring as usize * sectors + sector)
+}
+
+/// A disc light (one OLAT light of the virtual light stage): every sample lies in its cone with
+/// pdf 1/Ω, samples are uniform over the cone (equal-area bins), the pdf and radiance are those
+/// values inside and zero outside; a sampler biased away from one half of the disc is rejected.
+#[test]
+fn disc_light_sampler_matches_its_pdf() {
+    use lightfarm_render::DiscLight;
+    // The disc straddles the plane x = 0, so the biased sampler (redrawing x < 0) departs from it.
+    let l = (0.6f64 * 0.6 + 0.8 * 0.8).sqrt();
+    let axis = [0.0, 0.6 / l, 0.8 / l];
+    let disc = DiscLight {
+        name: "olat".into(),
+        direction: [axis[0] as f32, axis[1] as f32, axis[2] as f32],
+        radius_deg: 4.0,
+        radiance: [3.0, 2.0, 1.0],
+    };
+    let omc = 1.0 - 4f64.to_radians().cos();
+    let omega = disc.solid_angle();
+    assert!((omega - 2.0 * PI * omc).abs() < 1e-9 * omega);
+    let (rings, sectors) = (8usize, 16usize);
+    let mut p = probe();
+    let chi2 = |p: &Probe| {
+        let samples = p.env_samples(&disc, SAMPLES, 3).expect("disc samples");
+        let mut observed = vec![0.0; rings * sectors];
+        for (d, pdf) in &samples {
+            assert!(
+                ((*pdf as f64) * omega - 1.0).abs() < 1e-4,
+                "disc pdf {pdf} is not 1/Ω = {}",
+                1.0 / omega
+            );
+            // Samples on the rim may round a hair outside; they count in the outer ring.
+            let bin = disc_bin(axis, omc * (1.0 + 1e-4), *d, rings, sectors)
+                .unwrap_or_else(|| panic!("sample {d:?} outside the disc"));
+            observed[bin] += 1.0;
+        }
+        let expected = vec![SAMPLES as f64 / (rings * sectors) as f64; rings * sectors];
+        common::chi2_test("disc light", &observed, &expected, 1)
+    };
+    chi2(&p).unwrap_or_else(|e| panic!("{e}"));
+    // pdf and radiance: inside (the axis, half the radius) and outside (twice the radius).
+    let rot = |deg: f64| {
+        let t = deg.to_radians();
+        // Tilt the axis towards +x, which is perpendicular to it.
+        [
+            t.sin() as f32,
+            (axis[1] * t.cos()) as f32,
+            (axis[2] * t.cos()) as f32,
+        ]
+    };
+    let evals = p
+        .env_eval(&disc, &[rot(0.0), rot(2.0), rot(8.0), [0.0, -0.6, -0.8]])
+        .expect("disc eval");
+    for (k, (pdf, radiance)) in evals.iter().enumerate() {
+        if k < 2 {
+            assert!(
+                ((*pdf as f64) * omega - 1.0).abs() < 1e-4,
+                "pdf inside: {pdf}"
+            );
+            assert_eq!(*radiance, disc.radiance, "radiance inside");
+        } else {
+            assert_eq!(*pdf, 0.0, "pdf outside the disc");
+            assert_eq!(*radiance, [0.0; 3], "radiance outside the disc");
+        }
+    }
+    p.set_bias(Some(0));
+    let biased = chi2(&p);
+    assert!(
+        biased.is_err(),
+        "disc light: accepted a biased sampler: {biased:?}"
+    );
+}

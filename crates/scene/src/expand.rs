@@ -366,6 +366,14 @@ pub struct RenderSample {
     /// The appendix passes to write (absent in samples expanded before they existed: none).
     #[serde(default)]
     pub passes: Vec<String>,
+    /// Lights of the OLAT basis to render the sample under besides its two lightings (0, and
+    /// absent from the JSON, when none).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub olat: u32,
+}
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 /// Expands sample `index` of the dataset. `index` must be below `spec.count`.
@@ -541,6 +549,7 @@ pub fn expand(spec: &ResolvedSpec, index: u64) -> Result<SampleSpec, SceneError>
             spp: spec.spp,
             seed,
             passes: spec.passes.clone(),
+            olat: spec.lighting.olat,
         },
     })
 }

@@ -156,13 +156,21 @@ impl Default for CameraSpec {
 pub struct LightingSpec {
     pub rotation_deg: [f64; 2],
     pub flip_probability: f64,
+    /// Also render the sample under each light of the virtual light stage's OLAT basis (0:
+    /// not; the paper's stage has 168): one half-float `olatNNN` layer per light, from which
+    /// `lightfarm relight-olat` forms the sample under any HDRI.
+    pub olat: u32,
 }
+
+/// Most OLAT lights a sample may ask for: beyond ~300 the 4° discs of the basis touch.
+pub const MAX_OLAT: u32 = 256;
 
 impl Default for LightingSpec {
     fn default() -> Self {
         Self {
             rotation_deg: [0.0, 360.0],
             flip_probability: 0.5,
+            olat: 0,
         }
     }
 }
@@ -383,6 +391,16 @@ impl DatasetSpec {
         let l = &self.lighting;
         range_in("lighting.rotation_deg", l.rotation_deg, -720.0, 720.0, &bad)?;
         probability("lighting.flip_probability", l.flip_probability, &bad)?;
+        if l.olat == 1 || l.olat > MAX_OLAT {
+            return Err(bad(
+                "lighting.olat",
+                format!(
+                    "is {}; use 0 (no OLAT images) or 2..={MAX_OLAT} lights (the paper's light \
+                     stage has 168)",
+                    l.olat
+                ),
+            ));
+        }
 
         // Subject.
         let s = &self.subject;

@@ -361,6 +361,20 @@ fn held_out_identities_never_train() {
     }
 }
 
+/// `lighting.olat` reaches every sample's render block, and is absent from the JSON of samples
+/// that do not ask for OLAT images (whose bytes, and so hashes, stay what they were).
+#[test]
+fn olat_is_carried_into_each_sample_only_when_asked_for() {
+    let plain = expand_json(&example_resolved(4), 0).expect("expand");
+    assert!(!plain.contains("olat"), "{plain}");
+    let spec = resolve(&example_with("olat = 0", "olat = 168")).expect("valid");
+    let s = expand(&spec, 3).expect("expand");
+    assert_eq!(s.render.olat, 168);
+    let json = expand_json(&spec, 3).expect("json");
+    let back: SampleSpec = serde_json::from_str(&json).expect("round trip");
+    assert_eq!(back.render.olat, 168);
+}
+
 /// Each bad spec must fail, and the message must name the key a person has to edit.
 #[test]
 fn bad_specs_name_their_key() {
@@ -387,6 +401,8 @@ fn bad_specs_name_their_key() {
             "lighting.flip_probability",
             example_with("flip_probability = 0.5", "flip_probability = 2.0"),
         ),
+        ("lighting.olat", example_with("olat = 0", "olat = 1")),
+        ("lighting.olat", example_with("olat = 0", "olat = 257")),
         (
             "camera.yaw_deg",
             example_with("yaw_deg = [-45.0, 45.0]", "yaw_deg = [45.0, -45.0]"),

@@ -8,7 +8,9 @@
 //! ```
 //!
 //! K defaults to 2 and 8. K = 2 is the sample's own pair; more lightings add the catalog's HDRIs
-//! at further rotations. Prints a markdown table for BENCHMARKS.md: seconds per render, rays,
+//! at further rotations. K = `olat` is the virtual light stage: the 168 OLAT discs on shared
+//! paths, against one lighting and against the four brightest discs each rendered alone (their
+//! noise, and a disc's own cost). Prints a markdown table for BENCHMARKS.md: seconds per render, rays,
 //! cost against one lighting, and the noise per lighting of shared paths against separate ones
 //! (per lighting, the mean over covered pixels of (a − b)² / 2 between the two seeds; the ratio
 //! of shared to separate averaged over the K lightings, with its range) — so "cost at equal
@@ -19,7 +21,7 @@ use std::path::PathBuf;
 use lightfarm_light::{EnvTransform, Hdri};
 use lightfarm_render::gpu_scene::pack_scene;
 use lightfarm_render::vulkan::DeviceRequest;
-use lightfarm_render::{EnvLight, LightingSchedule, RenderOutput, Renderer};
+use lightfarm_render::{DiscLight, EnvLight, Lighting, LightingSchedule, RenderOutput, Renderer};
 use lightfarm_scene::catalog::AssetKind;
 use lightfarm_scene::expand::expand;
 use lightfarm_scene::spec::DatasetSpec;
@@ -52,10 +54,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let index: u64 = args[1].parse()?;
     let size: u32 = args[2].parse()?;
     let spp: u32 = args[3].parse()?;
+    // 0 stands for the OLAT basis.
     let ks: Vec<usize> = if args.len() > 4 {
         args[4..]
             .iter()
-            .map(|k| k.parse())
+            .map(|k| if k == "olat" { Ok(0) } else { k.parse() })
             .collect::<Result<_, _>>()?
     } else {
         vec![2, 8]
@@ -116,7 +119,50 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "| 1 | — | {t1:.2} | {:.1} | 1.00× | — | 1.00× |",
         one[0].stats.rays as f64 / 1e6
     );
+    let discs = DiscLight::olat(&lightfarm_subject::render::olat_basis(168)?);
+    let run_discs = |r: &Renderer,
+                     ds: &[&DiscLight]|
+     -> Result<[RenderOutput; 2], Box<dyn std::error::Error>> {
+        let ls: Vec<Lighting> = ds.iter().map(|d| Lighting::Disc(d)).collect();
+        let mut s = base.clone();
+        s.passes.clear();
+        let a = r.render_lightings(&packed, &ls, &s, &mut |_| {})?;
+        s.seed = base.seed.wrapping_add(1);
+        let b = r.render_lightings(&packed, &ls, &s, &mut |_| {})?;
+        Ok([a, b])
+    };
     for &k in &ks {
+        if k == 0 {
+            let all: Vec<&DiscLight> = discs.iter().collect();
+            let sh = run_discs(&shared, &all)?;
+            let tp = seconds(&sh);
+            // The four discs that light the subject most, each alone.
+            let mut order: Vec<usize> = (0..discs.len()).collect();
+            let mean = |l: usize| sh[0].lit[l].iter().map(|c| luminance(*c)).sum::<f64>();
+            order.sort_by(|&a, &b| mean(b).total_cmp(&mean(a)));
+            let (mut t_disc, mut ratios) = (0.0, Vec::new());
+            for &l in &order[..4] {
+                let alone = run_discs(&separate, &[&discs[l]])?;
+                t_disc += seconds(&alone) / 4.0;
+                ratios.push(noise(&sh[0], &sh[1], l) / noise(&alone[0], &alone[1], 0));
+            }
+            let mean_ratio = ratios.iter().sum::<f64>() / ratios.len() as f64;
+            let (lo, hi) = ratios
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(a, b), &r| (a.min(r), b.max(r)));
+            println!(
+                "| 1 OLAT disc | — | {t_disc:.2} | — | {:.2}× | — | — |",
+                t_disc / t1
+            );
+            println!(
+                "| 168 OLAT discs | shared | {tp:.2} | {:.1} | {:.2}× ({:.2}× one disc) | {mean_ratio:.2} ({lo:.2}–{hi:.2}) | {:.2}× |",
+                sh[0].stats.rays as f64 / 1e6,
+                tp / t1,
+                tp / t_disc,
+                tp / t1 * mean_ratio
+            );
+            continue;
+        }
         let sep = run(&separate, k)?;
         let sh = run(&shared, k)?;
         let ratios: Vec<f64> = (0..k)

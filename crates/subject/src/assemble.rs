@@ -35,6 +35,8 @@ pub struct Assembled {
     pub seed: u32,
     /// The appendix passes the sample asks for.
     pub passes: Vec<Pass>,
+    /// Lights of the OLAT basis to render it under as well (0: none).
+    pub olat: u32,
     pub stats: AssemblyStats,
 }
 
@@ -483,6 +485,7 @@ pub fn assemble(sample: &SampleSpec, catalog: &Catalog) -> Result<Assembled, Sub
             asset: "render.passes".into(),
             reason,
         })?,
+        olat: sample.render.olat,
         stats,
     })
 }

@@ -1,9 +1,9 @@
 //! Rendering an assembled sample: the one path the preview, the demo and farm workers share.
 
-use lightfarm_light::{EnvTransform, Hdri};
+use lightfarm_light::{EnvTransform, Hdri, OlatBasis, OLAT_DISC_DEG};
 use lightfarm_render::gpu_scene::pack_scene;
 use lightfarm_render::renderer::Progress;
-use lightfarm_render::{EnvLight, RenderOutput, RenderSettings, Renderer};
+use lightfarm_render::{DiscLight, EnvLight, Lighting, RenderOutput, RenderSettings, Renderer};
 
 use crate::{Assembled, SubjectError};
 
@@ -48,7 +48,19 @@ pub fn settings(assembled: &Assembled) -> RenderSettings {
     }
 }
 
-/// Renders both lightings and the passes of `assembled` on `renderer`.
+/// The OLAT basis of a sample that asks for `lights` lights: 4° discs (the paper's), world
+/// frame. Its maps are 512 × 256, which any count up to `lightfarm_scene::spec::MAX_OLAT`
+/// separates.
+pub fn olat_basis(lights: u32) -> Result<OlatBasis, SubjectError> {
+    OlatBasis::new(lights as usize, OLAT_DISC_DEG, 512, 256).map_err(|e| SubjectError::Asset {
+        asset: "render.olat".into(),
+        reason: e.to_string(),
+    })
+}
+
+/// Renders both lightings and the passes of `assembled` on `renderer`, then, when the sample
+/// asks for them, its OLAT images (`RenderOutput::olat`): every light of the basis on one set
+/// of camera paths, without the appendix passes (they belong to the two lightings).
 pub fn render_sample(
     renderer: &Renderer,
     assembled: &Assembled,
@@ -56,5 +68,38 @@ pub fn render_sample(
 ) -> Result<RenderOutput, SubjectError> {
     let lights = load_lights(assembled)?;
     let packed = pack_scene(&assembled.scene)?;
-    Ok(renderer.render(&packed, &lights, &settings(assembled), progress)?)
+    let settings = settings(assembled);
+    if assembled.olat == 0 {
+        return Ok(renderer.render(&packed, &lights, &settings, progress)?);
+    }
+    let basis = olat_basis(assembled.olat)?;
+    let discs = DiscLight::olat(&basis);
+    let olat_lights: Vec<Lighting> = discs.iter().map(Lighting::Disc).collect();
+    // One progress over both renders, in camera samples per pixel: the OLAT render's count
+    // K times (its cost is about K shadow rays per vertex).
+    let k = discs.len() as u64;
+    let spp = settings.spp as u64;
+    let total = spp * (1 + k);
+    let scaled = |p: Progress, weight: u64| p.done * spp * weight / p.total.max(1);
+    let mut out = renderer.render(&packed, &lights, &settings, &mut |p| {
+        progress(Progress {
+            done: scaled(p, 1),
+            total,
+        })
+    })?;
+    let olat_settings = RenderSettings {
+        passes: Vec::new(),
+        ..settings
+    };
+    let olat = renderer.render_lightings(&packed, &olat_lights, &olat_settings, &mut |p| {
+        progress(Progress {
+            done: spp + scaled(p, k),
+            total,
+        })
+    })?;
+    out.stats.olat_lights = olat.lit.len();
+    out.stats.olat_seconds = olat.stats.seconds;
+    out.stats.rays += olat.stats.rays;
+    out.olat = olat.lit;
+    Ok(out)
 }

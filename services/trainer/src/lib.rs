@@ -11,6 +11,7 @@ pub mod eval;
 pub mod image_io;
 pub mod infer;
 pub mod lights;
+pub mod olat_sample;
 pub mod sample;
 pub mod service;
 pub mod train;

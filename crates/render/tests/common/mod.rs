@@ -1,6 +1,7 @@
 //! Helpers shared by the render crate's device tests.
 #![allow(dead_code)]
 
+pub mod blocks;
 pub mod bsdf_ref;
 pub mod fibres;
 pub mod gltf_files;
