@@ -352,12 +352,14 @@ fn train_and_relight(a: &DemoArgs) -> Result<()> {
         model: run.clone(),
         image: entry.exr.clone(),
         mask: None,
-        hdri: hdri.clone(),
-        rotation: 0.0,
-        flip: false,
+        target: crate::olat_cmd::TargetHdri {
+            hdri: hdri.clone(),
+            rotation: 0.0,
+            flip: false,
+            assets: None,
+        },
         out: relit.clone(),
         device: a.train_device.clone(),
-        assets: None,
     })?;
     eprintln!(
         "demo: relit sample {} ({}) under {hdri}: {}",

@@ -12,28 +12,35 @@ use lightfarm_light::{EnvTransform, Hdri, OlatBasis};
 use lightfarm_render::output::{tonemap_srgb8, write_rgb8_png};
 use lightfarm_trainer::olat_sample::decode_olat;
 
-#[derive(Args)]
-pub struct RelightOlatArgs {
-    /// A sample EXR with OLAT layers (olat000.R ...).
-    pub sample: PathBuf,
+/// The lighting to relight under, as `relight` and `relight-olat` take it.
+#[derive(Args, Debug)]
+pub struct TargetHdri {
     /// Target lighting: an .hdr/.exr file or an HDRI id of the asset catalog.
     #[arg(long)]
     pub hdri: String,
-    /// Rotation of the HDRI about +Y, degrees (the convention of `lightfarm render`).
+    /// Rotation of the HDRI about +Y, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub rotation: f32,
     /// Mirror the HDRI left-right.
     #[arg(long)]
     pub flip: bool,
+    /// Asset catalog for HDRI ids (default: the built-in pack).
+    #[arg(long)]
+    pub assets: Option<PathBuf>,
+}
+
+#[derive(Args)]
+pub struct RelightOlatArgs {
+    /// A sample EXR with OLAT layers (olat000.R ...).
+    pub sample: PathBuf,
+    #[command(flatten)]
+    pub target: TargetHdri,
     /// The relit image: linear RGB OpenEXR (R, G, B, A = the sample's mask).
     #[arg(long)]
     pub out: PathBuf,
     /// Also a tone-mapped sRGB preview.
     #[arg(long)]
     pub png: Option<PathBuf>,
-    /// Asset catalog for HDRI ids (default: the built-in pack).
-    #[arg(long)]
-    pub assets: Option<PathBuf>,
 }
 
 /// An HDRI given as a file or a catalog id.
@@ -57,7 +64,7 @@ pub fn run(a: RelightOlatArgs) -> Result<()> {
     if let Some(p) = &a.png {
         crate::render_cmd::ensure_parent(p, "--png")?;
     }
-    let path = hdri_path(&a.hdri, &a.assets)?;
+    let path = hdri_path(&a.target.hdri, &a.target.assets)?;
     let name = a.sample.display().to_string();
     let bytes = std::fs::read(&a.sample).with_context(|| format!("reading {name}"))?;
     let olat = decode_olat(&bytes, &name)?;
@@ -65,8 +72,8 @@ pub fn run(a: RelightOlatArgs) -> Result<()> {
     // The basis the worker rendered (lightfarm_subject::render::olat_basis).
     let basis = lightfarm_subject::render::olat_basis(olat.lights.len() as u32)?;
     let transform = EnvTransform {
-        rotation_deg: a.rotation,
-        flip: a.flip,
+        rotation_deg: a.target.rotation,
+        flip: a.target.flip,
     };
     let relit = relight(&basis, &env, &transform, &olat.lights)?;
     write_rgba_exr(&a.out, olat.width, olat.height, &relit, &olat.mask)?;

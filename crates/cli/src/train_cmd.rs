@@ -260,23 +260,14 @@ pub struct RelightArgs {
     /// Foreground mask (white = subject); default: the image's alpha, or all of it.
     #[arg(long)]
     pub mask: Option<PathBuf>,
-    /// Target lighting: an .hdr/.exr file or an HDRI id of the asset catalog.
-    #[arg(long)]
-    pub hdri: String,
-    /// Rotation of the HDRI about +Y, degrees.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-    pub rotation: f32,
-    #[arg(long)]
-    pub flip: bool,
+    #[command(flatten)]
+    pub target: crate::olat_cmd::TargetHdri,
     /// Relit image (PNG) with the diffuse and mirror balls inset; the network's normal,
     /// albedo and light maps go next to it as OUT_normal.png etc.
     #[arg(long)]
     pub out: PathBuf,
     #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE", default_value = "auto")]
     pub device: String,
-    /// Asset catalog for HDRI ids (default: the built-in pack).
-    #[arg(long)]
-    pub assets: Option<PathBuf>,
 }
 
 fn load_lighting(hdri: &str, assets: &Option<PathBuf>) -> Result<Lighting> {
@@ -287,17 +278,18 @@ pub fn relight(a: RelightArgs) -> Result<()> {
     crate::render_cmd::ensure_parent(&a.out, "--out")?;
     let model = load_model(&a.model, &a.device)?;
     let portrait = load_portrait(&a.image, a.mask.as_deref())?;
-    let lighting = load_lighting(&a.hdri, &a.assets)?;
+    let t = &a.target;
+    let lighting = load_lighting(&t.hdri, &t.assets)?;
     let lighting_sample = lightfarm_scene::expand::LightingSample {
-        hdri: a.hdri.clone(),
+        hdri: t.hdri.clone(),
         blake3: String::new(),
-        rotation_deg: f64::from(a.rotation),
-        flip: a.flip,
+        rotation_deg: f64::from(t.rotation),
+        flip: t.flip,
     };
     // A rendered sample knows its camera; a photograph is taken from the HDRI's front (−Z).
     let rot = match &portrait.sample {
         Some(s) => camera_to_env(s.spec.camera.camera_to_world(), &lighting_sample, false),
-        None => identity_camera(a.rotation, a.flip),
+        None => identity_camera(t.rotation, t.flip),
     };
     let (w, h) = (portrait.width, portrait.height);
     let r = model.relight(&portrait.rgb, &portrait.mask, w, h, &lighting, rot)?;

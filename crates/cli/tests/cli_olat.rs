@@ -4,26 +4,15 @@
 //! with errors naming them. (That the sum equals a direct render of the HDRI within noise is
 //! crates/render/tests/olat.rs.)
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-use exr::prelude::ReadChannels;
-use exr::prelude::ReadLayers;
+use std::path::Path;
+
+use common::{lightfarm, repo};
 use lightfarm_light::{EnvTransform, Hdri};
 use lightfarm_render::vulkan::DeviceRequest;
 use lightfarm_render::Renderer;
 use lightfarm_trainer::olat_sample::decode_olat;
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn lightfarm(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lightfarm"))
-        .args(args)
-        .output()
-        .expect("run lightfarm")
-}
 
 fn spec(olat: u32) -> String {
     format!(
@@ -43,29 +32,12 @@ fn render_sample(renderer: &Renderer, olat: u32, path: &Path) {
 }
 
 fn read_rgba(path: &Path) -> (usize, Vec<[f32; 4]>) {
-    let img = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
-        .expect("relit EXR");
-    let layer = img.layer_data;
-    let ch = |n: &str| -> Vec<f32> {
-        layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == n)
-            .unwrap_or_else(|| panic!("no channel {n}"))
-            .sample_data
-            .values_as_f32()
-            .collect()
-    };
-    let (r, g, b, a) = (ch("R"), ch("G"), ch("B"), ch("A"));
-    let px = (0..r.len()).map(|i| [r[i], g[i], b[i], a[i]]).collect();
-    (layer.size.width(), px)
+    let bytes = std::fs::read(path).expect("relit EXR");
+    let (w, _, c) = common::exr_channels(&bytes, &["R", "G", "B", "A"]);
+    let px = (0..c[0].len())
+        .map(|i| [c[0][i], c[1][i], c[2][i], c[3][i]])
+        .collect();
+    (w as usize, px)
 }
 
 #[test]

@@ -1,26 +1,17 @@
 //! `lightfarm render` end to end: a real render of the built-in head, and malformed inputs that
 //! must end in an error naming the bad file or flag, never a panic.
 
+mod common;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
+use common::{lightfarm, repo};
 use lightfarm_light::{EnvTransform, Hdri};
 use lightfarm_render::gpu_scene::pack_scene;
 use lightfarm_render::scene::{materials_json, Camera, Scene};
 use lightfarm_render::vulkan::DeviceRequest;
 use lightfarm_render::{EnvLight, RenderOutput, RenderSettings, Renderer};
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn lightfarm(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_lightfarm"))
-        .args(args)
-        .output()
-        .expect("run lightfarm")
-}
 
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("lightfarm-cli-test-{}", std::process::id()));

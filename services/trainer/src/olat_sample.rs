@@ -5,7 +5,7 @@
 use exr::prelude::AttributeValue;
 use lightfarm_scene::expand::SampleSpec;
 
-use crate::sample::{read_first_layer, SAMPLE_ATTRIBUTE};
+use crate::sample::{coverage, read_first_layer, spec_from_attribute, SAMPLE_ATTRIBUTE};
 use crate::TrainError;
 
 /// Row-major images of one sample under each OLAT light, and its coverage mask.
@@ -71,16 +71,7 @@ pub fn decode_olat(bytes: &[u8], name: &str) -> Result<OlatImages, TrainError> {
         ));
     }
     let mask = match channel("mask.A") {
-        Some(m) => m?
-            .into_iter()
-            .map(|v| {
-                if v.is_finite() {
-                    v.clamp(0.0, 1.0)
-                } else {
-                    0.0
-                }
-            })
-            .collect(),
+        Some(m) => coverage(m?),
         None => vec![1.0; width * height],
     };
     let spec = match layer
@@ -89,18 +80,7 @@ pub fn decode_olat(bytes: &[u8], name: &str) -> Result<OlatImages, TrainError> {
         .get(&exr::prelude::Text::from(SAMPLE_ATTRIBUTE))
     {
         Some(AttributeValue::Text(t)) => {
-            let meta: serde_json::Value = serde_json::from_str(&t.to_string())
-                .map_err(|e| bad(format!("{SAMPLE_ATTRIBUTE} is not JSON ({e})")))?;
-            let spec: SampleSpec = serde_json::from_value(
-                meta.get("sample")
-                    .cloned()
-                    .unwrap_or(serde_json::Value::Null),
-            )
-            .map_err(|e| {
-                bad(format!(
-                    "{SAMPLE_ATTRIBUTE} holds no valid sample spec ({e})"
-                ))
-            })?;
+            let spec = spec_from_attribute(&t.to_string()).map_err(bad)?;
             if spec.render.olat as usize != lights.len() {
                 return Err(bad(format!(
                     "its spec asks for {} OLAT lights but the file holds {} layers (truncated \

@@ -86,18 +86,7 @@ pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainErro
             )))
         }
     };
-    let meta: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| bad(format!("{SAMPLE_ATTRIBUTE} is not JSON ({e})")))?;
-    let spec: SampleSpec = serde_json::from_value(
-        meta.get("sample")
-            .cloned()
-            .unwrap_or(serde_json::Value::Null),
-    )
-    .map_err(|e| {
-        bad(format!(
-            "{SAMPLE_ATTRIBUTE} holds no valid sample spec ({e})"
-        ))
-    })?;
+    let spec = spec_from_attribute(&text).map_err(bad)?;
     let normal = rgb("normal", ["X", "Y", "Z"])?;
     let normal_lens = lens_normals(&normal, rgb("normal_lens", ["X", "Y", "Z"])?);
     Ok(SampleImages {
@@ -107,18 +96,34 @@ pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainErro
         albedo: rgb("albedo", ["R", "G", "B"])?,
         normal,
         normal_lens,
-        mask: channel("mask.A")?
-            .into_iter()
-            .map(|v| {
-                if v.is_finite() {
-                    v.clamp(0.0, 1.0)
-                } else {
-                    0.0
-                }
-            })
-            .collect(),
+        mask: coverage(channel("mask.A")?),
         spec,
     })
+}
+
+/// The sample spec in the text of a `SAMPLE_ATTRIBUTE` header; the error says what is wrong.
+pub(crate) fn spec_from_attribute(text: &str) -> Result<SampleSpec, String> {
+    let meta: serde_json::Value =
+        serde_json::from_str(text).map_err(|e| format!("{SAMPLE_ATTRIBUTE} is not JSON ({e})"))?;
+    serde_json::from_value(
+        meta.get("sample")
+            .cloned()
+            .unwrap_or(serde_json::Value::Null),
+    )
+    .map_err(|e| format!("{SAMPLE_ATTRIBUTE} holds no valid sample spec ({e})"))
+}
+
+/// A mask channel as coverage: clamped to [0, 1], non-finite values as 0.
+pub(crate) fn coverage(mask: Vec<f32>) -> Vec<f32> {
+    mask.into_iter()
+        .map(|v| {
+            if v.is_finite() {
+                v.clamp(0.0, 1.0)
+            } else {
+                0.0
+            }
+        })
+        .collect()
 }
 
 /// The normal with lenses, N_l: the lens normal where a lens covers the pixel, the normal

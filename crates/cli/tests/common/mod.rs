@@ -1,11 +1,28 @@
-//! Helpers shared by the CLI's relighting tests: a sample's coverage mask, read with the exr
-//! crate independently of the trainer's decoder, and what a relit PNG must look like.
+//! Helpers shared by the CLI's tests: the repository, the binary, EXR channels and a sample's
+//! coverage mask read with the exr crate independently of the trainer's decoder, and what a
+//! relit PNG must look like.
 #![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
 
 use lightfarm_trainer::infer::in_inset;
 
-/// (width, height, `mask.A`) of a sample EXR.
-pub fn sample_mask(bytes: &[u8]) -> (u32, u32, Vec<f32>) {
+/// The repository root.
+pub fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// Runs the `lightfarm` binary built for these tests.
+pub fn lightfarm(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_lightfarm"))
+        .args(args)
+        .output()
+        .expect("run lightfarm")
+}
+
+/// (width, height, the named channels) of an EXR's first layer, read with the exr crate.
+pub fn exr_channels(bytes: &[u8], names: &[&str]) -> (u32, u32, Vec<Vec<f32>>) {
     use exr::prelude::{ReadChannels, ReadLayers};
     let img = exr::prelude::read()
         .no_deep_data()
@@ -14,18 +31,33 @@ pub fn sample_mask(bytes: &[u8]) -> (u32, u32, Vec<f32>) {
         .first_valid_layer()
         .all_attributes()
         .from_buffered(std::io::Cursor::new(bytes))
-        .expect("a readable sample EXR");
+        .expect("a readable EXR");
     let layer = &img.layer_data;
-    let mask = layer
-        .channel_data
-        .list
+    let channels = names
         .iter()
-        .find(|c| c.name.to_string() == "mask.A")
-        .expect("a mask.A channel")
-        .sample_data
-        .values_as_f32()
+        .map(|n| {
+            layer
+                .channel_data
+                .list
+                .iter()
+                .find(|c| c.name.to_string() == *n)
+                .unwrap_or_else(|| panic!("no channel {n}"))
+                .sample_data
+                .values_as_f32()
+                .collect()
+        })
         .collect();
-    (layer.size.width() as u32, layer.size.height() as u32, mask)
+    (
+        layer.size.width() as u32,
+        layer.size.height() as u32,
+        channels,
+    )
+}
+
+/// (width, height, `mask.A`) of a sample EXR.
+pub fn sample_mask(bytes: &[u8]) -> (u32, u32, Vec<f32>) {
+    let (w, h, mut c) = exr_channels(bytes, &["mask.A"]);
+    (w, h, c.remove(0))
 }
 
 /// Whether (x, y) of a `w × h` relit image lies under the light-ball inset.
