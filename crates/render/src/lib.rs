@@ -2,10 +2,12 @@
 //!
 //! Layout: `scene` (CPU scene from glTF), `gpu_scene` / `gpu_env` (flattening into the shaders'
 //! arrays, BVH builds), `gpu_types` (the shared `#[repr(C)]` structs), `vulkan` (the only module
-//! that touches ash), `renderer` (dispatching the integrator), `output` (EXR and PNG), `probe`
+//! that touches ash), `renderer` (dispatching the integrator; `settings`, `render_output` and `bound` hold what it
+//! is asked, what it returns and the buffers it binds), `output` (EXR and PNG), `probe`
 //! (running the sampling routines and traversal on the device for tests), `tables` (the layered
 //! model's directional-albedo tables), `hair` (the fibre material's absorption and colour).
 
+mod bound;
 pub mod counters;
 pub mod gpu_curves;
 pub mod gpu_env;
@@ -15,9 +17,11 @@ pub mod hair;
 pub mod output;
 pub mod passes;
 pub mod probe;
+pub mod render_output;
 pub mod renderer;
 pub mod scene;
 pub mod schedule;
+pub mod settings;
 pub mod shaders;
 pub mod tables;
 pub mod vulkan;

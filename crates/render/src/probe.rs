@@ -4,10 +4,10 @@
 
 use std::sync::Arc;
 
+use crate::bound::Bound;
 use crate::gpu_env::{pack_lightings, Lighting, PackedEnv};
 use crate::gpu_scene::PackedScene;
 use crate::gpu_types::{Params, Push};
-use crate::renderer::Bound;
 use crate::shaders;
 use crate::vulkan::{ComputeKernel, GpuBuffer, GpuContext};
 use crate::RenderError;

@@ -5,192 +5,20 @@
 use std::sync::Arc;
 use std::time::Instant;
 
+use crate::bound::Bound;
 use crate::counters::{TraversalCounts, TC_FIRST, TC_WORDS};
 use crate::gpu_env::{pack_lightings, EnvLight, Lighting, PackedEnv};
 use crate::gpu_scene::PackedScene;
 use crate::gpu_types::{Params, Push, PASS_VEC4S};
 use crate::passes::{LitPasses, Pass};
-use crate::scene::Camera;
+use crate::render_output::AuxImages;
+pub use crate::render_output::{Progress, RenderOutput, RenderStats};
 use crate::schedule::{LightingSchedule, WalkSchedule};
+use crate::settings::camera_params;
+pub use crate::settings::{RenderSettings, MAX_LIGHTS, MAX_SIZE, MAX_SPP};
 use crate::shaders;
 use crate::vulkan::{ComputeKernel, DeviceInfo, DeviceRequest, GpuBuffer, GpuContext};
 use crate::RenderError;
-
-/// Limits that catch typos (`--spp 2560000`) before they turn into hour-long renders or
-/// allocations the device cannot make.
-pub const MAX_SIZE: u32 = 16384;
-pub const MAX_SPP: u32 = 1 << 20;
-/// Lightings of one render: the virtual light stage's 168 OLAT lights and more. Their
-/// accumulators are grouped to what one storage buffer may span, so the count is bounded by
-/// the cost of the NEE loop (one shadow ray per lighting per vertex), not by memory.
-pub const MAX_LIGHTS: usize = 1024;
-
-#[derive(Clone, Debug)]
-pub struct RenderSettings {
-    pub width: u32,
-    pub height: u32,
-    pub spp: u32,
-    pub seed: u32,
-    /// Maximum number of scattering events on a path.
-    pub max_depth: u32,
-    /// Russian roulette starts at this depth.
-    pub rr_depth: u32,
-    pub camera: Camera,
-    /// The appendix passes to produce besides lit, albedo, normals and mask (crate::passes).
-    pub passes: Vec<Pass>,
-}
-
-impl RenderSettings {
-    pub fn validate(&self) -> Result<(), RenderError> {
-        let bad = |m: String| Err(RenderError::InvalidSettings(m));
-        if self.width == 0 || self.height == 0 || self.width > MAX_SIZE || self.height > MAX_SIZE {
-            return bad(format!(
-                "--size {}x{} is out of range: width and height must be 1..={MAX_SIZE}",
-                self.width, self.height
-            ));
-        }
-        if self.spp == 0 || self.spp > MAX_SPP {
-            return bad(format!(
-                "--spp {} is out of range: use 1..={MAX_SPP}",
-                self.spp
-            ));
-        }
-        if self.max_depth == 0 || self.max_depth > 1024 {
-            return bad(format!(
-                "max depth {} is out of range: use 1..=1024",
-                self.max_depth
-            ));
-        }
-        Ok(())
-    }
-}
-
-/// What one render measured.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct RenderStats {
-    pub seconds: f64,
-    /// Camera samples over all lightings: width × height × spp × lightings.
-    pub samples: u64,
-    pub samples_per_second: f64,
-    /// Rays cast (camera, bounce, shadow and pass rays).
-    pub rays: u64,
-    pub rays_per_second: f64,
-    pub device: String,
-    pub device_kind: String,
-    pub width: u32,
-    pub height: u32,
-    pub spp: u32,
-    pub lightings: usize,
-    /// Lightings traced on one set of camera paths (1 when traced separately).
-    pub lightings_per_path: usize,
-    pub triangles: usize,
-    /// Fibre segments (hair, eyebrows) over all curve sets.
-    pub curve_segments: usize,
-    /// Geometry on the device: BVH nodes, triangle and segment data, bytes.
-    pub geometry_bytes: u64,
-    /// OLAT images rendered after the lightings (`RenderOutput::olat`), and their time (s).
-    pub olat_lights: usize,
-    pub olat_seconds: f64,
-}
-
-/// The passes of one render, row-major from the top-left pixel.
-#[derive(Clone, Debug)]
-pub struct RenderOutput {
-    pub width: u32,
-    pub height: u32,
-    /// One image per lighting.
-    pub lit: Vec<Vec<[f32; 3]>>,
-    pub albedo: Vec<[f32; 3]>,
-    pub normal: Vec<[f32; 3]>,
-    pub normal_lens: Vec<[f32; 3]>,
-    pub mask: Vec<f32>,
-    /// The passes asked for in the settings (sorted); the output writes exactly these.
-    pub pass_set: Vec<Pass>,
-    /// One per lighting when `pass_set` has a light-dependent pass, else empty.
-    pub passes: Vec<LitPasses>,
-    /// Per pixel: 0 background, else 1 + the object class of the first sample's surface
-    /// (crate::passes::id_table); computed always, written when `pass_set` has `Id`.
-    pub id: Vec<u32>,
-    pub stats: RenderStats,
-    /// The traversal counters, when the renderer counted (`Renderer::set_traversal_counters`).
-    pub traversal: Option<TraversalCounts>,
-    /// The subject under each light of the OLAT basis, when its caller rendered them too
-    /// (`lightfarm_subject::render::render_sample`); written as half-float `olatNNN` layers.
-    pub olat: Vec<Vec<[f32; 3]>>,
-}
-
-/// Progress of a render, reported after every dispatch.
-#[derive(Clone, Copy, Debug)]
-pub struct Progress {
-    pub done: u64,
-    pub total: u64,
-}
-
-/// Device buffers of a scene and its lights, bound in the order of shaders/inc/bindings.wgsl.
-pub(crate) struct Bound {
-    pub params: GpuBuffer,
-    pub scene: [GpuBuffer; 7],
-    pub env: [GpuBuffer; 3],
-}
-
-impl Bound {
-    pub fn upload(
-        ctx: &Arc<GpuContext>,
-        params: &Params,
-        scene: &PackedScene,
-        env: &PackedEnv,
-    ) -> Result<Bound, RenderError> {
-        Ok(Bound {
-            params: GpuBuffer::from_slice(ctx, "params", std::slice::from_ref(params))?,
-            scene: [
-                GpuBuffer::from_slice(ctx, "bvh nodes", &scene.nodes)?,
-                GpuBuffer::from_slice(ctx, "triangle positions", &scene.tri_pos)?,
-                GpuBuffer::from_slice(ctx, "triangle attributes", &scene.tri_attr)?,
-                GpuBuffer::from_slice(ctx, "instances", &scene.instances)?,
-                GpuBuffer::from_slice(ctx, "materials", &scene.materials)?,
-                GpuBuffer::from_slice(ctx, "texture data", &scene.tex_data)?,
-                GpuBuffer::from_slice(ctx, "texture descriptors", &scene.tex_desc)?,
-            ],
-            env: [
-                GpuBuffer::from_slice(ctx, "environment texels", &env.texels)?,
-                GpuBuffer::from_slice(ctx, "environment distributions", &env.dist)?,
-                GpuBuffer::from_slice(ctx, "environment descriptors", &env.desc)?,
-            ],
-        })
-    }
-
-    /// All 17 bindings, with the read-write ones (and the probe input) given, then the
-    /// albedo tables.
-    pub fn bindings<'a>(
-        &'a self,
-        rw: [&'a GpuBuffer; 5],
-        tables: &'a GpuBuffer,
-    ) -> Vec<&'a GpuBuffer> {
-        let mut v = vec![&self.params];
-        v.extend(self.scene.iter());
-        v.extend(self.env.iter());
-        v.extend(rw);
-        v.push(tables);
-        v
-    }
-}
-
-pub(crate) fn camera_params(settings: &RenderSettings) -> ([f32; 4], [f32; 4], [f32; 4], [f32; 4]) {
-    let cam = &settings.camera;
-    let fwd = cam.forward.normalize();
-    let right = fwd.cross(cam.up).normalize();
-    let up = right.cross(fwd);
-    let tan_half = (cam.yfov_deg.to_radians() * 0.5).tan();
-    let aspect = settings.width as f32 / settings.height as f32;
-    let r = right * tan_half * aspect;
-    let u = up * tan_half;
-    (
-        [cam.position.x, cam.position.y, cam.position.z, 0.0],
-        [r.x, r.y, r.z, 0.0],
-        [u.x, u.y, u.z, 0.0],
-        [fwd.x, fwd.y, fwd.z, 0.0],
-    )
-}
 
 /// Paths per round of the walk-dispatch schedule: its job slots (JOB_VEC4S vec4s plus one
 /// queue entry each, 192 bytes) must fit lavapipe's 128 MiB storage-buffer range.
@@ -527,33 +355,7 @@ impl Renderer {
         } else {
             None
         };
-        let aux_sum: Vec<[f32; 4]> = aux.read()?;
-        let normalize = |v: [f32; 4]| {
-            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            if len > 0.0 {
-                [v[0] / len, v[1] / len, v[2] / len]
-            } else {
-                [0.0; 3]
-            }
-        };
-        let mut albedo = Vec::with_capacity(n);
-        let mut normal = Vec::with_capacity(n);
-        let mut normal_lens = Vec::with_capacity(n);
-        let mut mask = Vec::with_capacity(n);
-        let mut id = Vec::with_capacity(n);
-        for p in 0..n {
-            let a = aux_sum[4 * p];
-            let hits = a[3];
-            albedo.push(if hits > 0.0 {
-                [a[0] / hits, a[1] / hits, a[2] / hits]
-            } else {
-                [0.0; 3]
-            });
-            mask.push(hits / spp);
-            id.push(aux_sum[4 * p + 3][0] as u32);
-            normal.push(normalize(aux_sum[4 * p + 1]));
-            normal_lens.push(normalize(aux_sum[4 * p + 2]));
-        }
+        let aux = AuxImages::resolve(&aux.read()?, spp);
         let seconds = start.elapsed().as_secs_f64();
         let samples = pixels * settings.spp as u64 * lights.len() as u64;
         let info = self.ctx.info();
@@ -561,10 +363,10 @@ impl Renderer {
             width: w,
             height: h,
             lit: lit_images,
-            albedo,
-            normal,
-            normal_lens,
-            mask,
+            albedo: aux.albedo,
+            normal: aux.normal,
+            normal_lens: aux.normal_lens,
+            mask: aux.mask,
             pass_set: {
                 let mut v = settings.passes.clone();
                 v.sort();
@@ -572,7 +374,7 @@ impl Renderer {
                 v
             },
             passes: lit_passes,
-            id,
+            id: aux.id,
             stats: RenderStats {
                 seconds,
                 samples,

@@ -1,0 +1,59 @@
+//! The device buffers of one scene and its lightings, bound in the order of
+//! shaders/inc/bindings.wgsl, shared by the integrator, the tables kernel and the probes.
+
+use std::sync::Arc;
+
+use crate::gpu_env::PackedEnv;
+use crate::gpu_scene::PackedScene;
+use crate::gpu_types::Params;
+use crate::vulkan::{GpuBuffer, GpuContext};
+use crate::RenderError;
+
+/// Device buffers of a scene and its lights, bound in the order of shaders/inc/bindings.wgsl.
+pub(crate) struct Bound {
+    pub params: GpuBuffer,
+    pub scene: [GpuBuffer; 7],
+    pub env: [GpuBuffer; 3],
+}
+
+impl Bound {
+    pub fn upload(
+        ctx: &Arc<GpuContext>,
+        params: &Params,
+        scene: &PackedScene,
+        env: &PackedEnv,
+    ) -> Result<Bound, RenderError> {
+        Ok(Bound {
+            params: GpuBuffer::from_slice(ctx, "params", std::slice::from_ref(params))?,
+            scene: [
+                GpuBuffer::from_slice(ctx, "bvh nodes", &scene.nodes)?,
+                GpuBuffer::from_slice(ctx, "triangle positions", &scene.tri_pos)?,
+                GpuBuffer::from_slice(ctx, "triangle attributes", &scene.tri_attr)?,
+                GpuBuffer::from_slice(ctx, "instances", &scene.instances)?,
+                GpuBuffer::from_slice(ctx, "materials", &scene.materials)?,
+                GpuBuffer::from_slice(ctx, "texture data", &scene.tex_data)?,
+                GpuBuffer::from_slice(ctx, "texture descriptors", &scene.tex_desc)?,
+            ],
+            env: [
+                GpuBuffer::from_slice(ctx, "environment texels", &env.texels)?,
+                GpuBuffer::from_slice(ctx, "environment distributions", &env.dist)?,
+                GpuBuffer::from_slice(ctx, "environment descriptors", &env.desc)?,
+            ],
+        })
+    }
+
+    /// All 17 bindings, with the read-write ones (and the probe input) given, then the
+    /// albedo tables.
+    pub fn bindings<'a>(
+        &'a self,
+        rw: [&'a GpuBuffer; 5],
+        tables: &'a GpuBuffer,
+    ) -> Vec<&'a GpuBuffer> {
+        let mut v = vec![&self.params];
+        v.extend(self.scene.iter());
+        v.extend(self.env.iter());
+        v.extend(rw);
+        v.push(tables);
+        v
+    }
+}
