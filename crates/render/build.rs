@@ -53,15 +53,26 @@ fn main() {
         )
         .validate(&module)
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string_with_path(&src, &rel)));
-        let options = naga::back::spv::Options {
+        let mut options = naga::back::spv::Options {
             lang_version: (1, 3),
             // The traversal stacks in workgroup memory are written before they are read; naga's
             // zero-fill polyfill would add a barrier, which makes lavapipe run compute
             // invocations as coroutines.
             zero_initialize_workgroup_memory:
                 naga::back::spv::ZeroInitializeWorkgroupMemoryMode::None,
+            // naga's guards for WGSL's portability rules cost time in the traversal loops and
+            // buy nothing here (BENCHMARKS.md, "The kernel": +8% on the sphere, +12% on the
+            // head on lavapipe with the deferred material read): every loop ends (the
+            // traversal when its stack empties, walks and paths at their caps), and every
+            // integer divisor is a constant or a size the host checked non-zero (texture and
+            // environment widths).
+            force_loop_bounding: false,
+            emit_int_div_checks: false,
             ..Default::default()
         };
+        // naga labels everything when it was built with debug assertions: the SPIR-V, and so
+        // the Mesa shader cache key, would then differ between debug and release builds.
+        options.flags.remove(naga::back::spv::WriterFlags::DEBUG);
         let pipeline = naga::back::spv::PipelineOptions {
             shader_stage: naga::ShaderStage::Compute,
             entry_point: "main".into(),

@@ -312,24 +312,37 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
             let tmax = select((*best).t, 3.4e38, (*best).t < 0.0);
             var slot: u32;
             var h: vec3<f32>;
-            var mat: u32;
             if (curves) {
                 slot = inst.tri_offset + SEGMENT_VEC4S * (prims.x + local);
                 h = intersect_segment(slot, origin, dir, tmin, tmax);
-                mat = inst.material;
             } else {
                 slot = inst.tri_offset + prims.x + local;
                 h = intersect_triangle(slot, origin, dir, tmin, tmax);
-                mat = triangle_material(slot);
             }
-            // Shadow rays (any hit) see through mostly transparent surfaces (opacity < 0.5).
-            let see_through = any_hit && materials[mat].extra.y < 0.5;
-            let other_mat = only_mat != NO_MATERIAL && mat != only_mat;
-            if (h.x >= 0.0 && ((*best).t < 0.0 || h.x < (*best).t) && !see_through && !other_mat) {
-                *best = Hit(h.x, inst_id, slot, h.y, select(h.z, 0.0, curves));
-                found = true;
-                if (any_hit) {
-                    return true;
+            // The material is read only for a hit, and only where it matters: most tests miss,
+            // and on lavapipe every read is a gather (BENCHMARKS.md, "The kernel").
+            if (h.x >= 0.0 && ((*best).t < 0.0 || h.x < (*best).t)) {
+                var accept = true;
+                if (any_hit || only_mat != NO_MATERIAL) {
+                    var mat = inst.material;
+                    if (!curves) {
+                        mat = triangle_material(slot);
+                    }
+                    // Shadow rays (any hit) see through mostly transparent surfaces (opacity
+                    // < 0.5); the SSS walk sees only its own material.
+                    if (any_hit) {
+                        accept = !(materials[mat].extra.y < 0.5);
+                    }
+                    if (only_mat != NO_MATERIAL && mat != only_mat) {
+                        accept = false;
+                    }
+                }
+                if (accept) {
+                    *best = Hit(h.x, inst_id, slot, h.y, select(h.z, 0.0, curves));
+                    found = true;
+                    if (any_hit) {
+                        return true;
+                    }
                 }
             }
         }
