@@ -2,7 +2,8 @@
 # The renderer benchmark: lightfarm and Mitsuba 3 (llvm_ad_rgb) on the same two scenes in the same
 # run, printing samples/s, rays/s and lightfarm/Mitsuba ratios, plus both images' means as a
 # cross-check. Usage: bench/compare.sh [SIZE] [SPP]   (defaults 256 256)
-# Needs bench/setup_mitsuba.sh once. LIGHTFARM_DEVICE picks the Vulkan device (default: auto).
+# Needs bench/setup_mitsuba.sh once. LIGHTFARM_DEVICE picks the Vulkan device (default: auto);
+# LIGHTFARM_BIN a prebuilt lightfarm binary.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup-system.sh
@@ -14,9 +15,17 @@ if [ ! -f "$bench_dir/env.sh" ]; then
     exit 1
 fi
 source "$bench_dir/env.sh"
-cargo build --release --locked -p lightfarm >&2
-cargo run --release --locked -q -p lightfarm-render --example bench_scene -- "$bench_dir/diffuse_sphere.glb" >&2
-lf="$CARGO_TARGET_DIR/release/lightfarm"
+# LIGHTFARM_BIN: an already built `lightfarm` (e.g. the test suite's debug build: the render time
+# is the device's, so the Rust profile does not change it) instead of a release build here.
+if [ -n "${LIGHTFARM_BIN:-}" ]; then
+    lf="$LIGHTFARM_BIN"
+    profile=()
+else
+    cargo build --release --locked -p lightfarm >&2
+    lf="$CARGO_TARGET_DIR/release/lightfarm"
+    profile=(--release)
+fi
+cargo run "${profile[@]}" --locked -q -p lightfarm-render --example bench_scene -- "$bench_dir/diffuse_sphere.glb" >&2
 out="$bench_dir/run"
 mkdir -p "$out"
 
