@@ -28,6 +28,32 @@ const STAGE_PATHS: u32 = 1;
 const STAGE_WALKS: u32 = 2;
 const STAGE_GATHER: u32 = 3;
 
+/// The variable that replaces the built-in integrator with a SPIR-V file, for kernel work:
+/// `bench/kernel_ab.sh` compiles two `shaders/` trees (`examples/compile_kernel.rs`) and times
+/// the same binary with each.
+pub const INTEGRATOR_SPV_VAR: &str = "LIGHTFARM_INTEGRATOR_SPV";
+
+fn integrator_spirv() -> Result<Vec<u32>, RenderError> {
+    let Some(path) = std::env::var_os(INTEGRATOR_SPV_VAR) else {
+        return Ok(shaders::integrator());
+    };
+    let bad = |why: String| {
+        RenderError::InvalidSettings(format!(
+            "{INTEGRATOR_SPV_VAR}={}: {why}; unset it to render with the built-in integrator",
+            path.to_string_lossy()
+        ))
+    };
+    let bytes = std::fs::read(&path).map_err(|e| bad(format!("cannot read it: {e}")))?;
+    if bytes.len() % 4 != 0 || bytes.get(..4) != Some(&0x0723_0203u32.to_le_bytes()[..]) {
+        return Err(bad("not a little-endian SPIR-V module".into()));
+    }
+    tracing::warn!(path = %path.to_string_lossy(), "rendering with an integrator from {INTEGRATOR_SPV_VAR}");
+    Ok(bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect())
+}
+
 pub struct Renderer {
     ctx: Arc<GpuContext>,
     integrator: ComputeKernel,
@@ -47,7 +73,7 @@ impl Renderer {
         let integrator = ComputeKernel::new(
             &ctx,
             "integrator",
-            &shaders::integrator(),
+            &integrator_spirv()?,
             shaders::NUM_BINDINGS,
             std::mem::size_of::<Push>() as u32,
         )?;
