@@ -30,11 +30,10 @@ fn main() {
         }
         std::fs::write(out_dir.join(format!("{kernel}.wgsl")), &compiled.wgsl)
             .expect("write expanded WGSL");
-        let bytes: Vec<u8> = compiled
-            .spirv
-            .iter()
-            .flat_map(|w| w.to_le_bytes())
-            .collect();
-        std::fs::write(out_dir.join(format!("{kernel}.spv")), bytes).expect("write SPIR-V");
+        std::fs::write(
+            out_dir.join(format!("{kernel}.spv")),
+            compiled.spirv_bytes(),
+        )
+        .expect("write SPIR-V");
     }
 }

@@ -39,6 +39,13 @@ fn expand(
     Ok(())
 }
 
+impl Compiled {
+    /// The SPIR-V as the little-endian bytes of a `.spv` file.
+    pub fn spirv_bytes(&self) -> Vec<u8> {
+        self.spirv.iter().flat_map(|w| w.to_le_bytes()).collect()
+    }
+}
+
 /// Compiles `shaders/kernels/<file>.wgsl` under `root`. `naga_guards` restores naga's
 /// loop-bounding counters and integer-division checks, which the renderer leaves out (every
 /// loop ends, every integer divisor is a constant or a size the host checked non-zero;

@@ -15,12 +15,7 @@ fn run() -> Result<(), String> {
     };
     let compiled = kernel_source::compile(std::path::Path::new(root), "integrator", false, guards)
         .map_err(|e| format!("{root}: {e}"))?;
-    let bytes: Vec<u8> = compiled
-        .spirv
-        .iter()
-        .flat_map(|w| w.to_le_bytes())
-        .collect();
-    std::fs::write(out, bytes).map_err(|e| format!("cannot write {out}: {e}"))?;
+    std::fs::write(out, compiled.spirv_bytes()).map_err(|e| format!("cannot write {out}: {e}"))?;
     eprintln!(
         "{out}: {} words from {} lines of WGSL in {} files under {root}",
         compiled.spirv.len(),

@@ -48,10 +48,7 @@ fn integrator_spirv() -> Result<Vec<u32>, RenderError> {
         return Err(bad("not a little-endian SPIR-V module".into()));
     }
     tracing::warn!(path = %path.to_string_lossy(), "rendering with an integrator from {INTEGRATOR_SPV_VAR}");
-    Ok(bytes
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect())
+    Ok(shaders::words(&bytes))
 }
 
 pub struct Renderer {

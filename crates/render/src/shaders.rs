@@ -1,6 +1,8 @@
 //! SPIR-V of the kernels under `shaders/kernels/`, compiled by build.rs with naga.
 
-fn words(bytes: &[u8]) -> Vec<u32> {
+/// SPIR-V words from their little-endian bytes (a length not a multiple of 4 drops the tail;
+/// callers reading files check it first).
+pub(crate) fn words(bytes: &[u8]) -> Vec<u32> {
     bytes
         .chunks_exact(4)
         .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
