@@ -89,7 +89,10 @@ struct Push {
     count: u32,  // probe / test kernels: how many items; integrator: lightings sharing each path
     mutate: u32, // probe kernel: 0, or 1 + axis of a deliberately biased sampler (tests only)
     passes: u32, // integrator: 1 = accumulate the appendix passes of its lightings into probe_out
+    nee: u32,    // integrator: NEE_MIXTURE = one shadow ray per vertex for all its lightings
 };
+
+const NEE_MIXTURE: u32 = 1u;
 
 const NO_NODE: u32 = 0xffffffffu;
 const NO_TEX: u32 = 0xffffffffu;

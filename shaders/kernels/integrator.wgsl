@@ -22,7 +22,9 @@
 // sampling, roulette on the throughput), only what it gathers does. Each vertex casts one NEE
 // shadow ray per lighting from that lighting's own distribution, and an escaped ray adds each
 // lighting's radiance with that lighting's MIS weight, so every lighting gets the estimator it would
-// get rendered alone (tests/shared_paths.rs compares the two).
+// get rendered alone (tests/shared_paths.rs compares the two). With pc.nee = NEE_MIXTURE a vertex
+// casts one shadow ray for all lightings instead, from the mixture of their distributions, and
+// every MIS weight uses the mixture's density: unbiased per lighting, fewer rays, more noise.
 //
 // Accumulators: accum_lit[k * pixels + p] += radiance of lighting pc.light + k (the renderer
 // binds one group of lightings at a time); with pc.write_aux, accum_aux[4p..4p+4]
@@ -32,6 +34,10 @@
 // (STAGE_WALKS, always one lighting) returns its path's for the gather stage.
 
 const SHADOW_LENS_LAYERS: u32 = 4u;
+
+// The mixture schedule's shadow-ray stream is forked with this salt, which no lighting index
+// (at most MAX_LIGHTS) takes.
+const MIXTURE_STREAM: u32 = 0xfffffff0u;
 
 // The traversal counters' per-pixel words in `counters` (integrator_counters only; the renderer
 // sizes the buffer): rays, node tests, primitive tests, BLAS entries, deepest stack, overflows.
@@ -95,6 +101,26 @@ fn finite3(c: vec3<f32>) -> bool {
 
 fn shared_lightings() -> u32 {
     return max(pc.count, 1u);
+}
+
+// NEE_MIXTURE with more than one lighting: each vertex casts one shadow ray for all of them.
+fn nee_mixture() -> bool {
+    return pc.nee == NEE_MIXTURE && shared_lightings() > 1u;
+}
+
+// The density that sampled light directions have for every lighting of the dispatch: lighting
+// k's own under one shadow ray per lighting, (1/K) Σ_j p_j under the mixture (which picks a
+// lighting uniformly, then samples it), so MIS against BSDF sampling stays exact either way.
+fn light_pdf(k: u32, d: vec3<f32>) -> f32 {
+    if (!nee_mixture()) {
+        return env_pdf(pc.light + k, d);
+    }
+    let n = shared_lightings();
+    var sum = 0.0;
+    for (var j = 0u; j < n; j++) {
+        sum += env_pdf(pc.light + j, d);
+    }
+    return sum / f32(n);
 }
 
 // Radiance `c` of lighting slot `slot` at pixel `p` (see the accumulators above).
@@ -244,14 +270,21 @@ fn trace_path(start: PathStart, p: u32, sample: u32, defer_slot: u32, rng: ptr<f
             }
             if (hit.t < 0.0) {
                 if (!only_lens) {
+                    // The mixture's density is the same for every lighting: sum it once.
+                    var mix_pdf = 0.0;
+                    if (nee_mixture() && (!prev_delta || through_lenses)) {
+                        mix_pdf = light_pdf(0u, ray.dir);
+                    }
                     for (var k = 0u; k < lightings; k++) {
                         let light = pc.light + k;
                         let le = env_eval(light, ray.dir);
                         var w = 1.0;
-                        if (!prev_delta) {
-                            w = power_heuristic(prev_pdf, env_pdf(light, ray.dir));
-                        } else if (through_lenses) {
-                            w = power_heuristic(nee_pdf, env_pdf(light, ray.dir));
+                        if (!prev_delta || through_lenses) {
+                            var lp = mix_pdf;
+                            if (!nee_mixture()) {
+                                lp = env_pdf(light, ray.dir);
+                            }
+                            w = power_heuristic(select(nee_pdf, prev_pdf, !prev_delta), lp);
                         }
                         let c = throughput * le * w;
                         deposit_lit(p, k, c, &radiance);
@@ -287,32 +320,61 @@ fn trace_path(start: PathStart, p: u32, sample: u32, defer_slot: u32, rng: ptr<f
         // rays in a group as alone. (Drawing all of them from the path's stream made K = 168
         // run ~700 draws per vertex through the one 2^32 LCG cycle every stream is an offset
         // of, where the streams of different samples overlap and correlate: 2.4x the noise.)
+        //
+        // The mixture schedule casts one shadow ray per vertex instead, from a stream of its own
+        // (salted apart from the lightings'), toward a lighting picked uniformly, and weighs it
+        // for every lighting by the mixture density: one loop and one shadow_transmittance call
+        // site serve both (lavapipe inlines each call site's traversal).
         let fork = rng_next_u32(rng);
-        for (var k = 0u; k < lightings; k++) {
+        let mixture = nee_mixture();
+        let shadow_rays = select(lightings, 1u, mixture);
+        for (var r = 0u; r < shadow_rays; r++) {
             if (delta) {
                 break;
             }
-            var lrng = Rng(pcg_hash(fork ^ pcg_hash(pc.light + k)));
-            let ls = env_sample(pc.light + k, rng_next_u32(&lrng), vec3<f32>(rng_next(&lrng), rng_next2(&lrng)));
-            if (ls.pdf > 0.0 && (sp.fibre || dot(ls.dir, sp.ng) > 0.0)) {
-                let wi = to_local(sp.frame, ls.dir);
-                let e = bsdf_eval(sp.surface, wo, wi);
-                if (e.pdf > 0.0 || max3(e.f_cos) > 0.0) {
-                    let vis = shadow_transmittance(spawn_origin(sp, ls.dir), ls.dir, rays);
-                    let w = power_heuristic(ls.pdf, e.pdf);
-                    if (vis > 0.0) {
-                        deposit_lit(p, k, throughput * e.f_cos * ls.radiance * (vis * w / ls.pdf), &radiance);
-                    }
-                    if (want_passes) {
-                        let c = throughput * ls.radiance * (w / ls.pdf);
-                        if (!split_set) {
-                            let lobes = bsdf_lobes(sp.surface, wo, wi);
-                            deposit_passes(p, k, Passes(lobes.diffuse * c * vis, lobes.specular * c * vis, vec3<f32>(0.0),
-                                lobes.coat * c * vis, lobes.sheen * c * vis, luminance(e.f_cos * c) * vis,
-                                luminance(e.f_cos * c)), ps);
-                        } else {
-                            deposit_passes(p, k, split_passes(split, e.f_cos * c * vis), ps);
-                        }
+            var lrng = Rng(pcg_hash(fork ^ pcg_hash(select(pc.light + r, MIXTURE_STREAM, mixture))));
+            var aim = r;
+            if (mixture) {
+                aim = uniform_index(rng_next_u32(&lrng), lightings);
+            }
+            let ls = env_sample(pc.light + aim, rng_next_u32(&lrng), vec3<f32>(rng_next(&lrng), rng_next2(&lrng)));
+            if (ls.pdf <= 0.0 || (!sp.fibre && dot(ls.dir, sp.ng) <= 0.0)) {
+                continue;
+            }
+            let wi = to_local(sp.frame, ls.dir);
+            let e = bsdf_eval(sp.surface, wo, wi);
+            if (e.pdf <= 0.0 && max3(e.f_cos) <= 0.0) {
+                continue;
+            }
+            let vis = shadow_transmittance(spawn_origin(sp, ls.dir), ls.dir, rays);
+            var pdf = ls.pdf;
+            if (mixture) {
+                pdf = light_pdf(0u, ls.dir);
+            }
+            let w = power_heuristic(pdf, e.pdf);
+            // Under the mixture the ray serves every lighting, each with its own radiance there.
+            let first = select(r, 0u, mixture);
+            let last = select(r + 1u, lightings, mixture);
+            for (var k = first; k < last; k++) {
+                var le = ls.radiance;
+                if (mixture) {
+                    le = env_eval(pc.light + k, ls.dir);
+                }
+                if (max3(le) <= 0.0) {
+                    continue;
+                }
+                if (vis > 0.0) {
+                    deposit_lit(p, k, throughput * e.f_cos * le * (vis * w / pdf), &radiance);
+                }
+                if (want_passes) {
+                    let c = throughput * le * (w / pdf);
+                    if (!split_set) {
+                        let lobes = bsdf_lobes(sp.surface, wo, wi);
+                        deposit_passes(p, k, Passes(lobes.diffuse * c * vis, lobes.specular * c * vis, vec3<f32>(0.0),
+                            lobes.coat * c * vis, lobes.sheen * c * vis, luminance(e.f_cos * c) * vis,
+                            luminance(e.f_cos * c)), ps);
+                    } else {
+                        deposit_passes(p, k, split_passes(split, e.f_cos * c * vis), ps);
                     }
                 }
             }

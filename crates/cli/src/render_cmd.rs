@@ -67,8 +67,10 @@ pub struct RenderArgs {
     #[arg(long, default_value = "megakernel")]
     walk: String,
     /// How the lightings are traced: "shared" (each camera path serves every --hdri, one shadow
-    /// ray per lighting) or "separate" (each lighting traces its own paths). Same images within
-    /// noise; BENCHMARKS.md times both. --walk dispatch always traces them separately.
+    /// ray per lighting), "mixture" (shared paths, one shadow ray per vertex for all of them,
+    /// aimed by the mixture of their distributions) or "separate" (each lighting traces its own
+    /// paths). Same images within noise; BENCHMARKS.md times all three. --walk dispatch always
+    /// traces them separately.
     #[arg(long, default_value = "shared")]
     lightings: String,
     /// Count the BVH traversal per pixel (node and primitive tests, BLAS entries, stack depth
@@ -174,7 +176,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     })?;
     let lightings = LightingSchedule::parse(&args.lightings).with_context(|| {
         format!(
-            "--lightings '{}' is not a schedule: use shared or separate",
+            "--lightings '{}' is not a schedule: use shared, mixture or separate",
             args.lightings
         )
     })?;

@@ -332,11 +332,15 @@ fn malformed_inputs_name_the_file_or_flag() {
         ("--size", "100000x10"),
         ("--spp", "0"),
         ("--spp", "4000000000"),
+        ("--lightings", "banana"),
     ] {
         let err = fails(&[
             "render", "--scene", &head, "--hdri", &studio, flag, value, "--out", out_s,
         ]);
         assert!(err.contains(flag), "{flag} {value}: {err}");
+        if flag == "--lightings" {
+            assert!(err.contains("shared, mixture or separate"), "{err}");
+        }
     }
     let err = fails(&[
         "render", "--scene", &head, "--hdri", &studio, "--camera", "1,2:3", "--size", "8x8",

@@ -122,7 +122,13 @@ pub struct Push {
     pub mutate: u32,
     /// Integrator only: 1 = accumulate the appendix passes (shaders/kernels/integrator.wgsl).
     pub passes: u32,
+    /// Integrator only: NEE_MIXTURE = one shadow ray per vertex from the mixture of the
+    /// dispatch's lightings (LightingSchedule::Mixture), else one per lighting.
+    pub nee: u32,
 }
+
+/// Push::nee: one NEE shadow ray per vertex for all lightings (NEE_MIXTURE in bindings.wgsl).
+pub const NEE_MIXTURE: u32 = 1;
 
 const _: () = assert!(std::mem::size_of::<Params>() == 112);
 const _: () = assert!(std::mem::size_of::<InstanceGpu>() == 144);
@@ -132,5 +138,5 @@ pub const LUT_N: usize = 32;
 /// vec4s per pixel of the appendix-pass accumulator (PASS_VEC4S in integrator.wgsl).
 pub const PASS_VEC4S: usize = 6;
 const _: () = assert!(std::mem::size_of::<EnvDesc>() == 80);
-const _: () = assert!(std::mem::size_of::<Push>() == 32);
+const _: () = assert!(std::mem::size_of::<Push>() == 36);
 const _: () = assert!(std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>() == NODE_WORDS * 4);

@@ -9,7 +9,7 @@ use crate::bound::Bound;
 use crate::counters::{TraversalCounts, TC_FIRST, TC_WORDS};
 use crate::gpu_env::{pack_lightings, EnvLight, Lighting, PackedEnv};
 use crate::gpu_scene::PackedScene;
-use crate::gpu_types::{Params, Push, PASS_VEC4S};
+use crate::gpu_types::{Params, Push, NEE_MIXTURE, PASS_VEC4S};
 use crate::passes::{LitPasses, Pass};
 use crate::render_output::AuxImages;
 pub use crate::render_output::{Progress, RenderOutput, RenderStats};
@@ -321,6 +321,11 @@ impl Renderer {
                     count: shared,
                     write_aux: (light == 0) as u32,
                     passes: split as u32,
+                    nee: if self.lightings == LightingSchedule::Mixture {
+                        NEE_MIXTURE
+                    } else {
+                        0
+                    },
                     ..Default::default()
                 };
                 if dispatch {

@@ -35,6 +35,11 @@ pub enum LightingSchedule {
     /// shared paths; kept to measure them against and for the walk-dispatch schedule, whose
     /// job slots hold one lighting).
     Separate,
+    /// Shared paths with one NEE shadow ray per vertex for all the lightings of a group: it aims
+    /// at one lighting picked uniformly and is weighted for each by the mixture density
+    /// (1/K) Σ p_k, which the escaped rays' MIS weights use too. Fewer shadow rays, more noise
+    /// per lighting where the lightings' bright regions differ (BENCHMARKS.md measures both).
+    Mixture,
 }
 
 impl LightingSchedule {
@@ -42,6 +47,7 @@ impl LightingSchedule {
         match name {
             "shared" => Some(LightingSchedule::Shared),
             "separate" => Some(LightingSchedule::Separate),
+            "mixture" => Some(LightingSchedule::Mixture),
             _ => None,
         }
     }

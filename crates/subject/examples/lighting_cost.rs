@@ -1,7 +1,8 @@
 //! What a sample's lightings cost with shared paths against separate ones: one dataset sample
 //! (head, hair, garment, skin, every pass of the spec) rendered with its first lighting alone,
-//! then with K lightings traced separately and on shared paths, each twice with different seeds
-//! so that the noise per lighting is measured, not assumed.
+//! then with K lightings traced separately, on shared paths (one NEE shadow ray per lighting)
+//! and on shared paths with one shadow ray per vertex from the mixture of the K lightings, each
+//! twice with different seeds so that the noise per lighting is measured, not assumed.
 //!
 //! ```text
 //! cargo run --release -p lightfarm-subject --example lighting_cost -- SPEC INDEX SIZE SPP [K...]
@@ -9,12 +10,12 @@
 //!
 //! K defaults to 2 and 8. K = 2 is the sample's own pair; more lightings add the catalog's HDRIs
 //! at further rotations. K = `olat` is the virtual light stage: the 168 OLAT discs on shared
-//! paths, against one lighting and against the four brightest discs each rendered alone (their
-//! noise, and a disc's own cost). Prints a markdown table for BENCHMARKS.md: seconds per render, rays,
-//! cost against one lighting, and the noise per lighting of shared paths against separate ones
-//! (per lighting, the mean over covered pixels of (a − b)² / 2 between the two seeds; the ratio
-//! of shared to separate averaged over the K lightings, with its range) — so "cost at equal
-//! noise" is the cost times the noise ratio.
+//! paths (both NEE schedules), against one lighting and against the four brightest discs each
+//! rendered alone (their noise, and a disc's own cost). Prints a markdown table for
+//! BENCHMARKS.md: seconds per render, rays, cost against one lighting, and the noise per
+//! lighting of each shared schedule against separate renders (per lighting, the mean over
+//! covered pixels of (a − b)² / 2 between the two seeds; the ratio to separate averaged over
+//! the lightings, with its range) — so "cost at equal noise" is the cost times the noise ratio.
 
 use std::path::PathBuf;
 
@@ -94,6 +95,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     shared.set_lighting_schedule(LightingSchedule::Shared);
     let mut separate = Renderer::new(&DeviceRequest::Auto)?;
     separate.set_lighting_schedule(LightingSchedule::Separate);
+    let mut mixture = Renderer::new(&DeviceRequest::Auto)?;
+    mixture.set_lighting_schedule(LightingSchedule::Mixture);
     let base = settings(&assembled);
     let run = |r: &Renderer, k: usize| -> Result<[RenderOutput; 2], Box<dyn std::error::Error>> {
         let ls = lights(k);
@@ -113,7 +116,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seconds = |o: &[RenderOutput; 2]| (o[0].stats.seconds + o[1].stats.seconds) / 2.0;
     let one = run(&separate, 1)?;
     let t1 = seconds(&one);
-    println!("| lightings | schedule | seconds per render | M rays | cost / one lighting | noise per lighting, shared / separate (mean, range) | cost at equal noise / one lighting |");
+    println!("| lightings | schedule | seconds per render | M rays | cost / one lighting | noise per lighting / separate (mean, range) | cost at equal noise / one lighting |");
     println!("|---|---|---|---|---|---|---|");
     println!(
         "| 1 | — | {t1:.2} | {:.1} | 1.00× | — | 1.00× |",
@@ -140,16 +143,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut order: Vec<usize> = (0..discs.len()).collect();
             let mean = |l: usize| sh[0].lit[l].iter().map(|c| luminance(*c)).sum::<f64>();
             order.sort_by(|&a, &b| mean(b).total_cmp(&mean(a)));
-            let (mut t_disc, mut ratios) = (0.0, Vec::new());
+            let (mut t_disc, mut alone_noise) = (0.0, Vec::new());
             for &l in &order[..4] {
                 let alone = run_discs(&separate, &[&discs[l]])?;
                 t_disc += seconds(&alone) / 4.0;
-                ratios.push(noise(&sh[0], &sh[1], l) / noise(&alone[0], &alone[1], 0));
+                alone_noise.push(noise(&alone[0], &alone[1], 0));
             }
-            let mean_ratio = ratios.iter().sum::<f64>() / ratios.len() as f64;
-            let (lo, hi) = ratios
-                .iter()
-                .fold((f64::MAX, f64::MIN), |(a, b), &r| (a.min(r), b.max(r)));
+            let ratios_of = |o: &[RenderOutput; 2]| -> Vec<f64> {
+                order[..4]
+                    .iter()
+                    .zip(&alone_noise)
+                    .map(|(&l, a)| noise(&o[0], &o[1], l) / a)
+                    .collect()
+            };
+            let ratios = ratios_of(&sh);
+            let (mean_ratio, lo, hi) = spread(&ratios);
             println!(
                 "| 1 OLAT disc | — | {t_disc:.2} | — | {:.2}× | — | — |",
                 t_disc / t1
@@ -161,19 +169,31 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 tp / t_disc,
                 tp / t1 * mean_ratio
             );
+            // The mixture against the same four discs alone (their noise was measured above).
+            let mx = run_discs(&mixture, &all)?;
+            let tm = seconds(&mx);
+            let (mm, mlo, mhi) = spread(&ratios_of(&mx));
+            println!(
+                "| 168 OLAT discs | mixture | {tm:.2} | {:.1} | {:.2}× ({:.2}× one disc) | {mm:.2} ({mlo:.2}–{mhi:.2}) | {:.2}× |",
+                mx[0].stats.rays as f64 / 1e6,
+                tm / t1,
+                tm / t_disc,
+                tm / t1 * mm
+            );
             continue;
         }
         let sep = run(&separate, k)?;
         let sh = run(&shared, k)?;
-        let ratios: Vec<f64> = (0..k)
-            .map(|l| noise(&sh[0], &sh[1], l) / noise(&sep[0], &sep[1], l))
-            .collect();
-        let mean = ratios.iter().sum::<f64>() / k as f64;
-        let (lo, hi) = ratios
-            .iter()
-            .fold((f64::MAX, f64::MIN), |(a, b), &r| (a.min(r), b.max(r)));
+        let mx = run(&mixture, k)?;
+        let ratios = |o: &[RenderOutput; 2]| -> Vec<f64> {
+            (0..k)
+                .map(|l| noise(&o[0], &o[1], l) / noise(&sep[0], &sep[1], l))
+                .collect()
+        };
+        let (mean, lo, hi) = spread(&ratios(&sh));
+        let (mm, mlo, mhi) = spread(&ratios(&mx));
         let rays = |o: &[RenderOutput; 2]| o[0].stats.rays as f64 / 1e6;
-        let (ts, tp) = (seconds(&sep), seconds(&sh));
+        let (ts, tp, tm) = (seconds(&sep), seconds(&sh), seconds(&mx));
         println!(
             "| {k} | separate | {ts:.2} | {:.1} | {:.2}× | 1 | {:.2}× |",
             rays(&sep),
@@ -186,6 +206,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             tp / t1,
             tp / t1 * mean
         );
+        println!(
+            "| {k} | mixture | {tm:.2} | {:.1} | {:.2}× | {mm:.2} ({mlo:.2}–{mhi:.2}) | {:.2}× |",
+            rays(&mx),
+            tm / t1,
+            tm / t1 * mm
+        );
     }
     Ok(())
+}
+
+/// Mean, min and max of the noise ratios.
+fn spread(r: &[f64]) -> (f64, f64, f64) {
+    let mean = r.iter().sum::<f64>() / r.len().max(1) as f64;
+    let (lo, hi) = r
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+    (mean, lo, hi)
 }
