@@ -367,6 +367,16 @@ fn train_and_relight(a: &DemoArgs) -> Result<()> {
         entry.split,
         relit.display()
     );
+    // The demo runs without the pretrained weights too: LPIPS joins the table once installed.
+    let lpips = if lightfarm_nets::vgg::builtin_weights().is_file() {
+        "builtin"
+    } else {
+        eprintln!(
+            "demo: evaluating without LPIPS: its weights are not installed ({})",
+            lightfarm_nets::vgg::BUILTIN_WEIGHTS_FIX
+        );
+        "none"
+    };
     crate::train_cmd::eval(crate::train_cmd::EvalArgs {
         model: vec![run],
         dataset: Some(dataset),
@@ -374,6 +384,6 @@ fn train_and_relight(a: &DemoArgs) -> Result<()> {
         json: Some(a.out.join("eval.json")),
         device: a.train_device.clone(),
         assets: None,
-        lpips: None,
+        lpips: lpips.into(),
     })
 }

@@ -329,10 +329,11 @@ pub struct EvalArgs {
     pub device: String,
     #[arg(long)]
     pub assets: Option<PathBuf>,
-    /// LPIPS (VGG) weights as safetensors: torchvision's VGG16 `features.*` plus the lpips
-    /// package's `lin0..4`; adds an LPIPS column (README: "LPIPS and the perceptual loss").
-    #[arg(long)]
-    pub lpips: Option<PathBuf>,
+    /// LPIPS (VGG) weights for the LPIPS column: "builtin" (the pretrained ones that
+    /// ./scripts/fetch-models.sh installs), a safetensors file (torchvision's VGG16 `features.*`
+    /// plus the lpips package's `lin0..4`; README: "LPIPS and the perceptual loss"), or "none".
+    #[arg(long, default_value = "builtin")]
+    pub lpips: String,
 }
 
 /// The run a model came from (run.json two levels above its checkpoint), for its dataset.
@@ -352,6 +353,7 @@ pub fn eval(a: EvalArgs) -> Result<()> {
             a.model[0].display()
         ),
     };
+    let lpips = lpips_weights(&a.lpips)?;
     let assets = a.assets.clone().or_else(|| run.and_then(|r| r.assets));
     let catalog = load_catalog(&assets)?;
     let bar = ProgressBar::new(0).with_style(
@@ -364,7 +366,7 @@ pub fn eval(a: EvalArgs) -> Result<()> {
         &a.split,
         catalog,
         &a.device,
-        a.lpips.as_deref(),
+        lpips.as_deref(),
         |i, n| {
             bar.set_length(n as u64);
             bar.set_position(i as u64);
@@ -378,4 +380,24 @@ pub fn eval(a: EvalArgs) -> Result<()> {
             .with_context(|| format!("writing {}", path.display()))?;
     }
     Ok(())
+}
+
+/// `--lpips`: "none", "builtin" (which must be installed) or a weights file.
+fn lpips_weights(arg: &str) -> Result<Option<PathBuf>> {
+    match arg {
+        "none" => Ok(None),
+        "builtin" => {
+            let path = lightfarm_nets::vgg::builtin_weights();
+            if !path.is_file() {
+                bail!(
+                    "--lpips builtin: {} is not installed: {}; or pass --lpips none to \
+                     evaluate without LPIPS",
+                    path.display(),
+                    lightfarm_nets::vgg::BUILTIN_WEIGHTS_FIX
+                );
+            }
+            Ok(Some(path))
+        }
+        file => Ok(Some(PathBuf::from(file))),
+    }
 }

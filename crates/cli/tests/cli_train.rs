@@ -266,14 +266,34 @@ fn relight_and_eval_write_what_they_promise() {
         serde_json::from_slice(&std::fs::read(&json).expect("json")).expect("json");
     let rows = rows.as_array().expect("an array of rows");
     assert_eq!(rows.len(), 3);
+    // LPIPS is on by default, with the built-in weights (scripts/test.sh installs them).
+    assert!(table.contains("LPIPS"), "{table}");
     for row in rows {
-        for key in ["mae", "mse", "ssim"] {
+        for key in ["mae", "mse", "ssim", "lpips"] {
             assert!(
                 row[key].as_f64().is_some_and(f64::is_finite),
                 "{key} of {row}"
             );
         }
     }
+    let r = run(&["eval", "--model", m, "--split", "all", "--lpips", "none"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(!String::from_utf8_lossy(&r.stdout).contains("LPIPS"));
+    // Built-in weights that are not installed: an error naming the file and the fix.
+    let empty = tempfile::tempdir().expect("tmp");
+    let r = bin()
+        .args(["eval", "--model", m, "--split", "all"])
+        .env("LIGHTFARM_ASSETS", empty.path())
+        .output()
+        .expect("run lightfarm");
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("vgg16_lpips.safetensors")
+            && err.contains("fetch-models.sh")
+            && err.contains("--lpips none"),
+        "{err}"
+    );
 }
 
 #[test]
