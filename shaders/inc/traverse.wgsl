@@ -9,11 +9,11 @@
 const NODE_VEC4S: u32 = 5u;
 const TRI_ATTR_VEC4S: u32 = 5u;
 const NO_MATERIAL: u32 = 0xffffffffu;
-// Traversal stacks live in workgroup memory, one slice per invocation: lavapipe lowers a
+// Traversal stacks live in workgroup memory, interleaved by invocation: lavapipe lowers a
 // dynamically indexed private array to a ladder of selects over all its elements (measured as a
 // fifth of the render time), while workgroup memory is plain addressable memory. Entry `sp` of
-// invocation `stack_base` is at sp * WG_INVOCATIONS + stack_base: lanes at the same depth touch
-// consecutive words (no shared-memory bank conflicts on a GPU; +2-3% on lavapipe, BENCHMARKS.md).
+// invocation `stack_base` is at stack_slot(sp): lanes at the same depth touch consecutive words
+// (no shared-memory bank conflicts on a GPU; +2-3% on lavapipe, BENCHMARKS.md).
 // Every kernel including this file runs 64 invocations per workgroup and sets `stack_base` first.
 const BLAS_STACK: u32 = 24u;
 const TLAS_STACK: u32 = 8u;
@@ -21,6 +21,11 @@ const WG_INVOCATIONS: u32 = 64u;
 var<workgroup> blas_stack: array<vec2<u32>, 1536>; // WG_INVOCATIONS * BLAS_STACK
 var<workgroup> tlas_stack: array<vec2<u32>, 512>;  // WG_INVOCATIONS * TLAS_STACK
 var<private> stack_base: u32;
+
+// Index of entry `sp` of this invocation's stack in blas_stack / tlas_stack.
+fn stack_slot(sp: u32) -> u32 {
+    return sp * WG_INVOCATIONS + stack_base;
+}
 
 // Traversal counters: TRAVERSAL_COUNTERS is a constant that crates/render/build.rs prepends to
 // every kernel (false in the production integrator, true in `integrator_counters`), so the
@@ -352,7 +357,7 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
             let offset = firstLeadingBit(hits_imask);
             current.y &= ~(1u << offset);
             if ((current.y & 0xff000000u) != 0u) {
-                blas_stack[sp * WG_INVOCATIONS + stack_base] = current;
+                blas_stack[stack_slot(sp)] = current;
                 tc_push(sp, BLAS_STACK);
                 sp = min(sp + 1u, BLAS_STACK - 1u);
             }
@@ -375,7 +380,7 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
                 break;
             }
             sp -= 1u;
-            current = blas_stack[sp * WG_INVOCATIONS + stack_base];
+            current = blas_stack[stack_slot(sp)];
         }
     }
     return found;
@@ -415,7 +420,7 @@ fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
             let offset = firstLeadingBit(hits_imask);
             current.y &= ~(1u << offset);
             if ((current.y & 0xff000000u) != 0u) {
-                tlas_stack[sp * WG_INVOCATIONS + stack_base] = current;
+                tlas_stack[stack_slot(sp)] = current;
                 tc_push(sp, TLAS_STACK);
                 sp = min(sp + 1u, TLAS_STACK - 1u);
             }
@@ -438,7 +443,7 @@ fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
                 break;
             }
             sp -= 1u;
-            current = tlas_stack[sp * WG_INVOCATIONS + stack_base];
+            current = tlas_stack[stack_slot(sp)];
         }
     }
     if (best.instance == 0xffffffffu) {

@@ -108,13 +108,10 @@ fn nee_mixture() -> bool {
     return pc.nee == NEE_MIXTURE && shared_lightings() > 1u;
 }
 
-// The density that sampled light directions have for every lighting of the dispatch: lighting
-// k's own under one shadow ray per lighting, (1/K) Σ_j p_j under the mixture (which picks a
-// lighting uniformly, then samples it), so MIS against BSDF sampling stays exact either way.
-fn light_pdf(k: u32, d: vec3<f32>) -> f32 {
-    if (!nee_mixture()) {
-        return env_pdf(pc.light + k, d);
-    }
+// The density of the mixture's light samples, the same for every lighting of the dispatch:
+// (1/K) Σ_j p_j (it picks a lighting uniformly, then samples it), so MIS against BSDF sampling
+// stays exact for each lighting. Without the mixture a lighting's own env_pdf is the density.
+fn mixture_pdf(d: vec3<f32>) -> f32 {
     let n = shared_lightings();
     var sum = 0.0;
     for (var j = 0u; j < n; j++) {
@@ -273,7 +270,7 @@ fn trace_path(start: PathStart, p: u32, sample: u32, defer_slot: u32, rng: ptr<f
                     // The mixture's density is the same for every lighting: sum it once.
                     var mix_pdf = 0.0;
                     if (nee_mixture() && (!prev_delta || through_lenses)) {
-                        mix_pdf = light_pdf(0u, ray.dir);
+                        mix_pdf = mixture_pdf(ray.dir);
                     }
                     for (var k = 0u; k < lightings; k++) {
                         let light = pc.light + k;
@@ -349,7 +346,7 @@ fn trace_path(start: PathStart, p: u32, sample: u32, defer_slot: u32, rng: ptr<f
             let vis = shadow_transmittance(spawn_origin(sp, ls.dir), ls.dir, rays);
             var pdf = ls.pdf;
             if (mixture) {
-                pdf = light_pdf(0u, ls.dir);
+                pdf = mixture_pdf(ls.dir);
             }
             let w = power_heuristic(pdf, e.pdf);
             // Under the mixture the ray serves every lighting, each with its own radiance there.
