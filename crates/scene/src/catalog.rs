@@ -130,6 +130,24 @@ struct CatalogFile {
     asset: Vec<toml::Value>,
 }
 
+/// The built-in asset pack: `$LIGHTFARM_ASSETS` when that variable is set, otherwise the
+/// repository's `assets/`.
+pub fn builtin_assets_dir() -> PathBuf {
+    match std::env::var_os(ASSETS_ENV) {
+        Some(dir) if !dir.is_empty() => PathBuf::from(dir),
+        // The pack lives in the repository, two levels above this crate; walking up with
+        // parent() rather than joining "../.." keeps paths in messages readable.
+        _ => {
+            let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+            manifest
+                .parent()
+                .and_then(Path::parent)
+                .map(|repo| repo.join("assets"))
+                .unwrap_or_else(|| manifest.join("../../assets"))
+        }
+    }
+}
+
 impl Catalog {
     /// Loads and validates the catalog at `path`; asset paths resolve against its directory.
     pub fn load(path: &Path) -> Result<Catalog, SceneError> {
@@ -175,23 +193,9 @@ impl Catalog {
         Ok(Catalog { root, assets })
     }
 
-    /// The built-in catalog: `$LIGHTFARM_ASSETS/catalog.toml` when that variable is set,
-    /// otherwise the repository's `assets/catalog.toml`.
+    /// The built-in catalog: `catalog.toml` in [`builtin_assets_dir`].
     pub fn builtin() -> Result<Catalog, SceneError> {
-        let dir = match std::env::var_os(ASSETS_ENV) {
-            Some(dir) if !dir.is_empty() => PathBuf::from(dir),
-            // The pack lives in the repository, two levels above this crate; walking up with
-            // parent() rather than joining "../.." keeps paths in messages readable.
-            _ => {
-                let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
-                manifest
-                    .parent()
-                    .and_then(Path::parent)
-                    .map(|repo| repo.join("assets"))
-                    .unwrap_or_else(|| manifest.join("../../assets"))
-            }
-        };
-        Catalog::load(&dir.join(CATALOG_FILE))
+        Catalog::load(&builtin_assets_dir().join(CATALOG_FILE))
     }
 
     /// The asset with this id.
