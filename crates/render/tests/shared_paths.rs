@@ -128,9 +128,19 @@ fn every_lighting_of_shared_paths_matches_that_lighting_traced_alone() {
     let mut separate_renderer = Renderer::new(&DeviceRequest::Auto).expect("a Vulkan device");
     separate_renderer.set_lighting_schedule(LightingSchedule::Separate);
 
+    let mut mixture_renderer = Renderer::new(&DeviceRequest::Auto).expect("a Vulkan device");
+    mixture_renderer.set_lighting_schedule(LightingSchedule::Mixture);
+
     let shared: Vec<RenderOutput> = (11..15).map(|s| render(shared_renderer, s)).collect();
     let separate: Vec<RenderOutput> = (21..25).map(|s| render(&separate_renderer, s)).collect();
-    for (name, out) in [("shared", &shared[0]), ("separate", &separate[0])] {
+    // Eight seeds: under the mixture the small patch gets a third of the shadow rays, and the
+    // standard errors of its heavy-tailed sss pass need more than four renders to settle.
+    let mixture: Vec<RenderOutput> = (11..19).map(|s| render(&mixture_renderer, s)).collect();
+    for (name, out) in [
+        ("shared", &shared[0]),
+        ("separate", &separate[0]),
+        ("mixture", &mixture[0]),
+    ] {
         println!(
             "{name}: {} rays in {:.2} s ({} lightings)",
             out.stats.rays, out.stats.seconds, out.stats.lightings
@@ -145,42 +155,18 @@ fn every_lighting_of_shared_paths_matches_that_lighting_traced_alone() {
         assert_eq!(a.diffuse, b.diffuse);
         assert_eq!(a.shadow, b.shadow);
     }
-    assert_eq!(shared[0].albedo, same_seed.albedo);
-    assert_eq!(shared[0].normal, same_seed.normal);
-    assert_eq!(shared[0].mask, same_seed.mask);
-    assert_eq!(shared[0].id, same_seed.id);
+    assert_same_camera_paths(&shared[0], &same_seed);
     // Extension rays are traced once instead of once per lighting.
-    assert!(
-        (shared[0].stats.rays as f64) < 0.75 * separate[0].stats.rays as f64,
-        "shared paths cast {} rays, separate {}",
-        shared[0].stats.rays,
-        separate[0].stats.rays
-    );
+    assert_fewer_rays("shared paths", &shared[0], "separate", &separate[0], 0.75);
 
     let z = z_scores(&shared, &separate, 1.0);
     common::blocks::assert_null("shared against separate", &z, 100);
 
-    let mut mixture_renderer = Renderer::new(&DeviceRequest::Auto).expect("a Vulkan device");
-    mixture_renderer.set_lighting_schedule(LightingSchedule::Mixture);
-    // Eight seeds: under the mixture the small patch gets a third of the shadow rays, and the
-    // standard errors of its heavy-tailed sss pass need more than four renders to settle.
-    let mixture: Vec<RenderOutput> = (11..19).map(|s| render(&mixture_renderer, s)).collect();
-    println!(
-        "mixture: {} rays in {:.2} s",
-        mixture[0].stats.rays, mixture[0].stats.seconds
-    );
     // The path's own stream is drawn the same under both: same camera rays, same paths.
-    assert_eq!(mixture[0].albedo, shared[0].albedo);
-    assert_eq!(mixture[0].normal, shared[0].normal);
-    assert_eq!(mixture[0].mask, shared[0].mask);
+    assert_same_camera_paths(&mixture[0], &shared[0]);
     // One shadow ray per vertex instead of one per lighting (three here). The skin's random
     // walks cast most of this scene's rays, so the saving is ~13 %, not two thirds.
-    assert!(
-        (mixture[0].stats.rays as f64) < 0.95 * shared[0].stats.rays as f64,
-        "mixture cast {} rays, shared {}",
-        mixture[0].stats.rays,
-        shared[0].stats.rays
-    );
+    assert_fewer_rays("mixture", &mixture[0], "shared", &shared[0], 0.95);
     let z = z_scores(&mixture, &separate, 1.0);
     common::blocks::assert_null("mixture against separate", &z, 100);
 
@@ -191,5 +177,23 @@ fn every_lighting_of_shared_paths_matches_that_lighting_traced_alone() {
     assert!(
         wrong_chi2 > 1.5,
         "a 10 % error went unnoticed: mean z² {wrong_chi2}"
+    );
+}
+
+/// The camera-ray passes of two renders are the same bit for bit.
+fn assert_same_camera_paths(a: &RenderOutput, b: &RenderOutput) {
+    assert_eq!(a.albedo, b.albedo);
+    assert_eq!(a.normal, b.normal);
+    assert_eq!(a.mask, b.mask);
+    assert_eq!(a.id, b.id);
+}
+
+/// `a` cast fewer than `ratio` times the rays of `b`.
+fn assert_fewer_rays(a_name: &str, a: &RenderOutput, b_name: &str, b: &RenderOutput, ratio: f64) {
+    assert!(
+        (a.stats.rays as f64) < ratio * b.stats.rays as f64,
+        "{a_name} cast {} rays, {b_name} {}",
+        a.stats.rays,
+        b.stats.rays
     );
 }
