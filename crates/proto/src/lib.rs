@@ -9,6 +9,8 @@ pub mod v1 {
     tonic::include_proto!("lightfarm.v1");
 }
 
+pub mod client;
+
 /// Bearer-token checking shared by every lightfarm service.
 pub mod auth {
     use tonic::{Request, Status};

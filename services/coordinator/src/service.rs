@@ -109,38 +109,22 @@ pub fn record_from_pb(i: pb::SampleInfo) -> SampleRecord {
     }
 }
 
-/// Reassembles a `GetSample` / `StreamSamples` stream (per sample: its info, then its data
-/// chunks) into whole samples.
+/// Reassembles a `GetSample` / `StreamSamples` stream into whole samples as store records.
 #[derive(Default)]
-pub struct SampleAssembler {
-    current: Option<(SampleRecord, Vec<u8>)>,
-}
+pub struct SampleAssembler(lightfarm_proto::client::SampleChunks);
 
 impl SampleAssembler {
-    /// Feeds one chunk; returns the previous sample when this chunk starts the next one. A data
-    /// chunk before any info breaks the protocol and is an error.
+    /// Feeds one chunk; returns the previous sample when this chunk starts the next one.
     pub fn push(
         &mut self,
         chunk: pb::SampleChunk,
     ) -> Result<Option<(SampleRecord, Vec<u8>)>, String> {
-        match chunk.kind {
-            Some(pb::sample_chunk::Kind::Info(info)) => {
-                Ok(self.current.replace((record_from_pb(info), Vec::new())))
-            }
-            Some(pb::sample_chunk::Kind::Data(d)) => match self.current.as_mut() {
-                Some((_, buf)) => {
-                    buf.extend_from_slice(&d);
-                    Ok(None)
-                }
-                None => Err("the coordinator sent sample data before the sample's info".into()),
-            },
-            None => Ok(None),
-        }
+        Ok(self.0.push(chunk)?.map(|(i, d)| (record_from_pb(i), d)))
     }
 
     /// The last sample, once the stream has ended.
     pub fn finish(self) -> Option<(SampleRecord, Vec<u8>)> {
-        self.current
+        self.0.finish().map(|(i, d)| (record_from_pb(i), d))
     }
 }
 

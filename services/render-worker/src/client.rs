@@ -8,55 +8,11 @@ use anyhow::{bail, Context, Result};
 use lightfarm_proto::v1 as pb;
 use lightfarm_proto::v1::workers_client::WorkersClient;
 use tokio::sync::watch;
-use tonic::codegen::InterceptedService;
-use tonic::metadata::MetadataValue;
-use tonic::transport::{Certificate, Channel, ClientTlsConfig, Endpoint};
-use tonic::{Code, Request, Status};
+use tonic::{Code, Status};
 
-#[derive(Clone)]
-pub struct Auth(MetadataValue<tonic::metadata::Ascii>);
-
-impl tonic::service::Interceptor for Auth {
-    fn call(&mut self, mut req: Request<()>) -> Result<Request<()>, Status> {
-        req.metadata_mut().insert("authorization", self.0.clone());
-        Ok(req)
-    }
-}
-
-/// A channel whose every call carries the bearer token; any generated client wraps it.
-pub type AuthedChannel = InterceptedService<Channel, Auth>;
+pub use lightfarm_proto::client::{channel, transient, Auth, AuthedChannel};
 
 pub type Workers = WorkersClient<AuthedChannel>;
-
-/// Connects lazily (the coordinator may not be up yet) to `url` with bearer `token`.
-pub fn channel(url: &str, token: &str, tls_ca: Option<&Path>) -> Result<(Channel, Auth)> {
-    let mut endpoint = Endpoint::from_shared(url.to_string())
-        .with_context(|| format!("coordinator address `{url}` is not a URL like http://host:7070"))?
-        .connect_timeout(Duration::from_secs(5))
-        .tcp_keepalive(Some(Duration::from_secs(20)));
-    if let Some(ca) = tls_ca {
-        let pem = std::fs::read(ca).with_context(|| format!("--tls-ca {}", ca.display()))?;
-        endpoint = endpoint
-            .tls_config(ClientTlsConfig::new().ca_certificate(Certificate::from_pem(pem)))
-            .context("TLS configuration")?;
-    }
-    let value: MetadataValue<_> = format!("Bearer {token}")
-        .parse()
-        .context("the token must be printable ASCII")?;
-    Ok((endpoint.connect_lazy(), Auth(value)))
-}
-
-/// Errors worth waiting out: the coordinator is restarting or the network is cut.
-pub fn transient(status: &Status) -> bool {
-    matches!(
-        status.code(),
-        Code::Unavailable
-            | Code::DeadlineExceeded
-            | Code::Unknown
-            | Code::Cancelled
-            | Code::Aborted
-    )
-}
 
 #[derive(Clone)]
 pub struct Client {
