@@ -23,7 +23,7 @@ fi
 
 dirs=("$@")
 if [ ${#dirs[@]} -eq 0 ]; then
-    dirs=(crates services)
+    dirs=(crates services ./tests)
 fi
 # Test code: the tests/ folders, plus unit tests inside src/ (files with a #[cfg(test)]).
 mapfile -t files < <(

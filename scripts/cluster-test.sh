@@ -6,7 +6,8 @@
 # refused and say so. Prometheus (profile metrics) must report the job's 30 committed tasks.
 # Then the trainer trains on the job's folder export and is `docker kill`ed mid-run: restarted,
 # it resumes the job, and the client following it must see it complete with one loss line per
-# step. Needs Docker and a Debian mirror (base images); not part of .ci/run. Builds the images
+# step. Then the trainer trains on the job straight from the coordinator (farm://) while the
+# coordinator is `docker kill`ed and restarted: one loss line per step again. Needs Docker and a Debian mirror (base images); not part of .ci/run. Builds the images
 # first (scripts/docker-build.sh). A few minutes once images exist.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -80,5 +81,21 @@ wait "$client" || { echo "FAIL: the train client failed:"; tail -5 "$tlog"; exit
 grep -q "completed at step 40" "$tlog" || { echo "FAIL: job did not complete:"; tail -5 "$tlog"; exit 1; }
 steps=$(docker exec lightfarm_trainer_1 sh -c 'cat /data/jobs/*/run/losses.jsonl' | grep -o '"step": *[0-9]*' | grep -o '[0-9]*$' | tr '\n' ' ')
 [ "$steps" = "$(seq -s ' ' 1 40) " ] || { echo "FAIL: loss steps are not 1..40 once each: $steps"; exit 1; }
+echo "the trainer trains from the coordinator directly (farm://) while the coordinator is docker killed"
+scfg=$(mktemp)
+printf 'steps = 30\nbatch = 2\ncrop = 16\ncheckpoint_every = 5\nvgg_weights = "none"\n[net]\nwidths = [8, 16, 32]\ncritic_width = 8\n' > "$scfg"
+slog=$(mktemp)
+"$B" train "$scfg" --trainer "$trainer" --dataset "farm://coordinator:7070/$job" >"$slog" 2>&1 &
+client=$!
+newest_losses() { docker exec lightfarm_trainer_1 sh -c 'cat "$(ls -d /data/jobs/*/ | sort | tail -1)run/losses.jsonl" 2>/dev/null | wc -l'; }
+for _ in $(seq 1 600); do [ "$(newest_losses || echo 0)" -ge 6 ] 2>/dev/null && break; sleep 0.5; done
+echo "docker kill the coordinator at $(newest_losses) streamed steps"
+docker kill lightfarm_coordinator_1 >/dev/null
+sleep 5
+docker start lightfarm_coordinator_1 >/dev/null
+wait "$client" || { echo "FAIL: the streamed train client failed:"; tail -5 "$slog"; exit 1; }
+grep -q "completed at step 30" "$slog" || { echo "FAIL: streamed job did not complete:"; tail -5 "$slog"; exit 1; }
+steps=$(docker exec lightfarm_trainer_1 sh -c 'cat "$(ls -d /data/jobs/*/ | sort | tail -1)run/losses.jsonl"' | grep -o '"step": *[0-9]*' | grep -o '[0-9]*$' | tr '\n' ' ')
+[ "$steps" = "$(seq -s ' ' 1 30) " ] || { echo "FAIL: streamed loss steps are not 1..30 once each: $steps"; exit 1; }
 "$B" train-jobs --trainer "$trainer"
 echo "PASS"

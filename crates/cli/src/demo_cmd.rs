@@ -297,6 +297,15 @@ fn train_and_relight(a: &DemoArgs) -> Result<()> {
         critic_width: 8,
         ..NetConfig::default()
     };
+    // The paper's perceptual loss when its pretrained weights are installed; the demo still
+    // runs without them.
+    if !lightfarm_nets::vgg::builtin_weights().is_file() {
+        eprintln!(
+            "demo: training without the perceptual loss: its weights are not installed ({})",
+            lightfarm_nets::vgg::BUILTIN_WEIGHTS_FIX
+        );
+        cfg.vgg_weights = Some(lightfarm_trainer::config::VGG_NONE.into());
+    }
     cfg.validate().map_err(anyhow::Error::msg)?;
     eprintln!("demo: training the relighting network ({} steps, widths {:?}, {crop}² crops) on the train split", cfg.steps, cfg.net.widths);
     let bar = ProgressBar::new(cfg.steps).with_style(

@@ -58,6 +58,10 @@ pub struct TrainerArgs {
     /// auto, cpu or gpu.
     #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE", default_value = "auto")]
     pub device: String,
+    /// Bearer token of the coordinators that `farm://HOST:PORT/JOB` datasets name (default:
+    /// this trainer's --token, as in a cluster sharing one).
+    #[arg(long, env = "LIGHTFARM_COORDINATOR_TOKEN", hide_env_values = true)]
+    pub coordinator_token: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -205,6 +209,10 @@ async fn serve_trainer(a: TrainerArgs) -> Result<()> {
             datasets: a.datasets.clone(),
             catalog,
             device: a.device.clone(),
+            coordinator_token: a
+                .coordinator_token
+                .clone()
+                .or_else(|| Some(a.token.clone())),
         },
     )?;
     let listener = tokio::net::TcpListener::bind(&a.listen)

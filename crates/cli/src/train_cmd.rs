@@ -31,10 +31,12 @@ pub struct TrainArgs {
     /// follow the job; `dataset` then names a folder export under the trainer's --datasets.
     #[arg(long, env = "LIGHTFARM_TRAINER")]
     pub trainer: Option<String>,
-    /// Dataset name on the trainer (overrides the config's `dataset`).
+    /// Dataset on the trainer: a folder export under its --datasets, or a coordinator job
+    /// `farm://HOST:PORT/JOB` as the trainer reaches it (overrides the config's `dataset`).
     #[arg(long, requires = "trainer")]
     pub dataset: Option<String>,
-    /// Bearer token of the trainer service.
+    /// Bearer token of the trainer service, or of the coordinator of a `farm://HOST:PORT/JOB`
+    /// dataset.
     #[arg(long, env = "LIGHTFARM_TOKEN", hide_env_values = true)]
     pub token: Option<String>,
 }
@@ -84,6 +86,7 @@ pub fn train(a: TrainArgs) -> Result<()> {
     if let Some(d) = a.device {
         cfg.device = d;
     }
+    cfg.token = a.token.clone();
     cfg.validate()
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.config.display()))?;
     let catalog = load_catalog(&cfg.assets)?;

@@ -5,13 +5,15 @@ use std::path::{Path, PathBuf};
 use lightfarm_nets::{LossWeights, RelightConfig, RenderNet};
 use serde::{Deserialize, Serialize};
 
+use crate::farm::FarmAddress;
 use crate::TrainError;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TrainConfig {
-    /// A folder export (`lightfarm export JOB --format folder --out DIR`). Relative paths are
-    /// relative to the config file.
+    /// A folder export (`lightfarm export JOB --format folder --out DIR`; relative paths are
+    /// relative to the config file), or a job on a coordinator, `farm://HOST:PORT/JOB`, read
+    /// while it renders (`[stream]`).
     pub dataset: PathBuf,
     /// Run directory: checkpoints, `losses.jsonl`, `run.json`. Relative to the config file.
     pub out: PathBuf,
@@ -47,10 +49,39 @@ pub struct TrainConfig {
     pub net: NetConfig,
     #[serde(default)]
     pub loss: LossWeights,
-    /// VGG16 weights (safetensors, torchvision layout) for the perceptual loss, weighted by
-    /// `loss.perceptual`; without them the loss is off. Relative to the config file.
+    /// VGG16 weights for the perceptual loss (weight `loss.perceptual`): absent or "builtin"
+    /// is the pretrained set `scripts/fetch-models.sh` installs, "none" turns the loss off, and
+    /// anything else is a safetensors file in torchvision's layout, relative to the config file.
     #[serde(default)]
     pub vgg_weights: Option<PathBuf>,
+    /// How a `farm://` dataset is read.
+    #[serde(default)]
+    pub stream: StreamConfig,
+    /// Bearer token of a `farm://` dataset's coordinator: from `--token` / `LIGHTFARM_TOKEN`,
+    /// never from the file (and never written to `run.json`).
+    #[serde(skip)]
+    pub token: Option<String>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StreamConfig {
+    /// CA certificate (PEM) of a TLS coordinator. Relative to the config file.
+    pub tls_ca: Option<PathBuf>,
+    /// Where fetched samples are kept; `<out>/sample-cache` when absent.
+    pub cache_dir: Option<PathBuf>,
+    /// Size bound of that cache in GiB: least recently used samples leave first.
+    pub cache_gb: f64,
+}
+
+impl Default for StreamConfig {
+    fn default() -> Self {
+        StreamConfig {
+            tls_ca: None,
+            cache_dir: None,
+            cache_gb: 16.0,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -83,6 +114,16 @@ impl NetConfig {
             .with_widths(self.widths.clone())
             .with_render_net(self.render_net)
     }
+}
+
+/// `vgg_weights` values that are not files.
+pub const VGG_NONE: &str = "none";
+pub const VGG_BUILTIN: &str = "builtin";
+
+/// "none" or "builtin" rather than a path.
+pub fn is_keyword(v: &Path) -> bool {
+    v.to_str()
+        .is_some_and(|t| t == VGG_NONE || t == VGG_BUILTIN)
 }
 
 fn default_split() -> String {
@@ -118,20 +159,53 @@ impl TrainConfig {
         let mut cfg: TrainConfig = toml::from_str(&text)
             .map_err(|e| TrainError::Config(format!("{}: {e}", path.display())))?;
         let base = path.parent().unwrap_or(Path::new("."));
-        cfg.dataset = base.join(&cfg.dataset);
+        if !FarmAddress::is_farm(&cfg.dataset.to_string_lossy()) {
+            cfg.dataset = base.join(&cfg.dataset);
+        }
+        cfg.stream.tls_ca = cfg.stream.tls_ca.map(|p| base.join(p));
+        cfg.stream.cache_dir = cfg.stream.cache_dir.map(|p| base.join(p));
         cfg.out = base.join(&cfg.out);
         cfg.assets = cfg.assets.map(|a| base.join(a));
-        cfg.vgg_weights = cfg.vgg_weights.map(|v| base.join(v));
+        cfg.vgg_weights = cfg
+            .vgg_weights
+            .map(|v| if is_keyword(&v) { v } else { base.join(v) });
         cfg.validate()
             .map_err(|e| TrainError::Config(format!("{}: {e}", path.display())))?;
         Ok(cfg)
+    }
+
+    /// The perceptual loss's weights file; `None` when the loss is off.
+    pub fn perceptual_weights(&self) -> Option<PathBuf> {
+        if self.loss.perceptual == 0.0 {
+            return None;
+        }
+        match self.vgg_weights.as_deref().and_then(Path::to_str) {
+            Some(VGG_NONE) => None,
+            None | Some(VGG_BUILTIN) => Some(lightfarm_nets::vgg::builtin_weights()),
+            Some(_) => self.vgg_weights.clone(),
+        }
+    }
+
+    /// The cache directory of a streamed dataset.
+    pub fn cache_dir(&self) -> PathBuf {
+        self.stream
+            .cache_dir
+            .clone()
+            .unwrap_or_else(|| self.out.join("sample-cache"))
     }
 
     pub fn validate(&self) -> Result<(), String> {
         let relight = self.net.relight();
         relight.validate().map_err(|e| format!("net.widths: {e}"))?;
         let multiple = relight.size_multiple();
-        let checks: [(bool, String); 9] = [
+        if let Some(text) = self.dataset.to_str().filter(|t| FarmAddress::is_farm(t)) {
+            FarmAddress::parse(text).map_err(|e| e.to_string())?;
+        }
+        let checks: [(bool, String); 10] = [
+            (
+                self.stream.cache_gb.is_finite() && self.stream.cache_gb > 0.0,
+                format!("stream.cache_gb = {} must be a positive number of GiB", self.stream.cache_gb),
+            ),
             ((1..=100_000_000).contains(&self.steps), format!("steps = {} must be in 1..=100000000", self.steps)),
             ((1..=512).contains(&self.batch), format!("batch = {} must be in 1..=512", self.batch)),
             (

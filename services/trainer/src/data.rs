@@ -1,4 +1,4 @@
-//! The input pipeline: a folder export, read in a seeded order that is a pure function of
+//! The input pipeline: a folder export or a coordinator job (`farm.rs`), read in a seeded order that is a pure function of
 //! (seed, step) — so a run resumed from a checkpoint sees exactly the batches it would have —
 //! decoded on background threads, cropped, mirrored, and paired both ways (lit0 → lit1 under
 //! HDRI 1 and lit1 → lit0 under HDRI 0).
@@ -12,6 +12,7 @@ use burn::prelude::*;
 use lightfarm_nets::{LightBatch, LightInput, Targets};
 use lightfarm_store::{list_export_folder, ExportEntry};
 
+use crate::farm::{FarmSource, StreamState};
 use crate::lights::{camera_to_env, LightCache, Lighting};
 use crate::sample::{decode_sample, SampleImages};
 use crate::TrainError;
@@ -25,8 +26,18 @@ pub const INPUT_LUMINANCE: f32 = 0.5;
 const DECODED_CACHE: usize = 64;
 
 pub struct Dataset {
-    entries: Vec<ExportEntry>,
-    decoded: Mutex<HashMap<usize, Arc<SampleImages>>>,
+    source: Source,
+    decoded: Mutex<HashMap<u64, Arc<SampleImages>>>,
+}
+
+enum Source {
+    /// The export's samples and, by sample index, their positions.
+    Folder {
+        entries: Vec<ExportEntry>,
+        items: Arc<Vec<u64>>,
+        by_index: HashMap<u64, usize>,
+    },
+    Farm(Box<FarmSource>),
 }
 
 impl Dataset {
@@ -51,37 +62,95 @@ impl Dataset {
                 }
             )));
         }
+        let items: Vec<u64> = entries.iter().map(|e| e.index).collect();
+        let by_index = items.iter().enumerate().map(|(i, &x)| (x, i)).collect();
         Ok(Dataset {
-            entries,
+            source: Source::Folder {
+                entries,
+                items: Arc::new(items),
+                by_index,
+            },
             decoded: Mutex::new(HashMap::new()),
         })
     }
 
+    /// A coordinator job followed by `source` (see [`crate::farm`]).
+    pub fn farm(source: FarmSource) -> Dataset {
+        Dataset {
+            source: Source::Farm(Box::new(source)),
+            decoded: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// The sample indices training draws from until the next [`Self::refresh`], in a fixed
+    /// order (the export's for a folder, by sample index for a stream).
+    pub fn items(&self) -> Arc<Vec<u64>> {
+        match &self.source {
+            Source::Folder { items, .. } => items.clone(),
+            Source::Farm(f) => Arc::new(f.state().samples.iter().map(|s| s.index).collect()),
+        }
+    }
+
+    /// Takes in the samples a stream received since the last refresh; true if there were any.
+    pub fn refresh(&self) -> Result<bool, TrainError> {
+        match &self.source {
+            Source::Folder { .. } => Ok(false),
+            Source::Farm(f) => f.refresh(),
+        }
+    }
+
+    /// The snapshot a checkpoint must keep, for a stream.
+    pub fn stream_state(&self) -> Option<Arc<StreamState>> {
+        match &self.source {
+            Source::Folder { .. } => None,
+            Source::Farm(f) => Some(f.state()),
+        }
+    }
+
     pub fn len(&self) -> usize {
-        self.entries.len()
+        self.items().len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.entries.is_empty()
+        self.len() == 0
     }
 
-    pub fn entry(&self, i: usize) -> &ExportEntry {
-        &self.entries[i]
-    }
-
+    /// The `i`-th sample of [`Self::items`].
     pub fn load(&self, i: usize) -> Result<Arc<SampleImages>, TrainError> {
-        if let Some(s) = self.decoded.lock().ok().and_then(|c| c.get(&i).cloned()) {
+        let items = self.items();
+        let index = *items.get(i).ok_or_else(|| {
+            TrainError::Input(format!("no sample at position {i} of {}", items.len()))
+        })?;
+        self.load_sample(index)
+    }
+
+    /// Sample `index` of the job, decoded.
+    pub fn load_sample(&self, index: u64) -> Result<Arc<SampleImages>, TrainError> {
+        if let Some(s) = self
+            .decoded
+            .lock()
+            .ok()
+            .and_then(|c| c.get(&index).cloned())
+        {
             return Ok(s);
         }
-        let entry = &self.entries[i];
-        let sample = entry.read().map_err(|e| TrainError::Input(e.to_string()))?;
-        let images = Arc::new(decode_sample(
-            &sample.exr,
-            &entry.exr.display().to_string(),
-        )?);
+        let images = Arc::new(match &self.source {
+            Source::Folder {
+                entries, by_index, ..
+            } => {
+                let entry = by_index.get(&index).map(|&i| &entries[i]).ok_or_else(|| {
+                    TrainError::Input(format!("the export has no sample {index}"))
+                })?;
+                let sample = entry.read().map_err(|e| TrainError::Input(e.to_string()))?;
+                decode_sample(&sample.exr, &entry.exr.display().to_string())?
+            }
+            Source::Farm(f) => {
+                decode_sample(&f.bytes(index)?, &format!("{index} of the streamed job"))?
+            }
+        });
         if let Ok(mut c) = self.decoded.lock() {
             if c.len() < DECODED_CACHE {
-                c.insert(i, images.clone());
+                c.insert(index, images.clone());
             }
         }
         Ok(images)
@@ -285,6 +354,7 @@ pub fn to_device(examples: &[Example], device: &Device) -> Result<Batch, TrainEr
 /// Builds the examples of steps `start..` on `threads` background threads, handing them out
 /// in step order with at most a few steps decoded ahead.
 pub struct Prefetcher {
+    items: usize,
     rx: Receiver<(u64, Result<Vec<Example>, TrainError>)>,
     pending: BTreeMap<u64, Result<Vec<Example>, TrainError>>,
     next: u64,
@@ -300,20 +370,31 @@ pub struct PrefetchParams {
 }
 
 impl Prefetcher {
-    pub fn start(dataset: Arc<Dataset>, lights: Arc<LightCache>, p: PrefetchParams) -> Prefetcher {
+    /// `items` is the dataset's [`Dataset::items`] in force for these steps.
+    pub fn start(
+        dataset: Arc<Dataset>,
+        items: Arc<Vec<u64>>,
+        lights: Arc<LightCache>,
+        p: PrefetchParams,
+    ) -> Prefetcher {
         let threads = p.threads.max(1);
         let (tx, rx) = sync_channel(threads * 2);
+        let count = items.len();
         for w in 0..threads as u64 {
-            let (tx, dataset, lights) = (tx.clone(), dataset.clone(), lights.clone());
+            let (tx, dataset, items, lights) =
+                (tx.clone(), dataset.clone(), items.clone(), lights.clone());
             let (seed, batch, crop, start, end) = (p.seed, p.batch, p.crop, p.start, p.end);
             std::thread::Builder::new()
                 .name(format!("prefetch-{w}"))
                 .spawn(move || {
                     let mut step = start + w;
                     while step < end {
-                        let result = plan(seed, step, batch, dataset.len())
+                        let result = plan(seed, step, batch, items.len())
                             .iter()
-                            .map(|d| example(&*dataset.load(d.sample)?, d, crop, &lights))
+                            .map(|d| {
+                                let s = dataset.load_sample(items[d.sample])?;
+                                example(&s, d, crop, &lights)
+                            })
                             .collect();
                         if tx.send((step, result)).is_err() {
                             return; // the trainer stopped
@@ -324,10 +405,16 @@ impl Prefetcher {
                 .expect("spawning a prefetch thread");
         }
         Prefetcher {
+            items: count,
             rx,
             pending: BTreeMap::new(),
             next: p.start,
         }
+    }
+
+    /// How many samples the steps draw from.
+    pub fn items(&self) -> usize {
+        self.items
     }
 
     /// The examples of the next step, in order.

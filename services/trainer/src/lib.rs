@@ -8,11 +8,13 @@
 pub mod config;
 pub mod data;
 pub mod eval;
+pub mod farm;
 pub mod image_io;
 pub mod infer;
 pub mod lights;
 pub mod olat_sample;
 pub mod sample;
+pub mod sample_cache;
 pub mod service;
 pub mod train;
 

@@ -16,6 +16,7 @@ use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
 use crate::config::TrainConfig;
+use crate::farm::FarmAddress;
 use crate::image_io::{load_portrait, png_bytes};
 use crate::infer::{load_model, normal_colours};
 use crate::lights::{identity_camera, Lighting};
@@ -33,6 +34,8 @@ pub struct ServiceConfig {
     pub catalog: Catalog,
     /// Training device for every job: auto, cpu or gpu.
     pub device: String,
+    /// Bearer token for the coordinators of `farm://` datasets.
+    pub coordinator_token: Option<String>,
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -209,10 +212,21 @@ impl TrainerService {
     fn config_of(&self, record: &JobRecord) -> Result<TrainConfig, TrainError> {
         let mut cfg: TrainConfig = toml::from_str(&record.config_toml)
             .map_err(|e| TrainError::Config(format!("job {}: {e}", record.id)))?;
-        cfg.dataset = self.0.cfg.datasets.join(&record.dataset);
+        if FarmAddress::is_farm(&record.dataset) {
+            cfg.dataset = PathBuf::from(&record.dataset);
+            cfg.token = self.0.cfg.coordinator_token.clone();
+        } else {
+            cfg.dataset = self.0.cfg.datasets.join(&record.dataset);
+        }
         cfg.out = self.job_dir(&record.id).join(RUN_DIR);
         cfg.device = self.0.cfg.device.clone();
-        cfg.vgg_weights = cfg.vgg_weights.map(|v| self.0.cfg.datasets.join(v));
+        cfg.vgg_weights = cfg.vgg_weights.map(|v| {
+            if crate::config::is_keyword(&v) {
+                v
+            } else {
+                self.0.cfg.datasets.join(v)
+            }
+        });
         cfg.validate().map_err(TrainError::Config)?;
         Ok(cfg)
     }
@@ -292,7 +306,13 @@ impl pb::trainer_server::Trainer for TrainerService {
         } else {
             r.dataset.clone()
         };
-        let dataset = relative_dataset(&named)?;
+        let farm = FarmAddress::is_farm(&named);
+        let dataset = if farm {
+            FarmAddress::parse(&named).map_err(|e| Status::invalid_argument(e.to_string()))?;
+            PathBuf::from(&named)
+        } else {
+            relative_dataset(&named)?
+        };
         table.insert("dataset".into(), "-".into());
         table.insert("out".into(), "-".into());
         let mut cfg: TrainConfig = table
@@ -309,7 +329,11 @@ impl pb::trainer_server::Trainer for TrainerService {
         }
         cfg.validate()
             .map_err(|e| Status::invalid_argument(format!("config: {e}")))?;
-        if let Some(v) = &cfg.vgg_weights {
+        if let Some(v) = cfg
+            .vgg_weights
+            .as_ref()
+            .filter(|v| !crate::config::is_keyword(v))
+        {
             let rel = under_datasets("vgg_weights", "a safetensors file's", &v.to_string_lossy())?;
             if !self.0.cfg.datasets.join(&rel).is_file() {
                 return Err(Status::failed_precondition(format!(
@@ -318,9 +342,24 @@ impl pb::trainer_server::Trainer for TrainerService {
                 )));
             }
         }
-        let full = self.0.cfg.datasets.join(&dataset);
-        crate::data::Dataset::open(&full, &cfg.split)
-            .map_err(|e| Status::failed_precondition(e.to_string()))?;
+        if cfg.stream.tls_ca.is_some() || cfg.stream.cache_dir.is_some() {
+            return Err(Status::invalid_argument(
+                "[stream] tls_ca and cache_dir are the trainer service's to set; remove them",
+            ));
+        }
+        if farm {
+            // Checked when the job starts (the coordinator may be busy or restarting now).
+            if self.0.cfg.coordinator_token.is_none() {
+                return Err(Status::failed_precondition(
+                    "this trainer has no coordinator token for farm:// datasets: start it with \
+                     --coordinator-token (or LIGHTFARM_COORDINATOR_TOKEN)",
+                ));
+            }
+        } else {
+            let full = self.0.cfg.datasets.join(&dataset);
+            crate::data::Dataset::open(&full, &cfg.split)
+                .map_err(|e| Status::failed_precondition(e.to_string()))?;
+        }
         let id = {
             let jobs = self.0.jobs.lock().unwrap_or_else(|p| p.into_inner());
             format!("train-{:06}", jobs.len() + 1)

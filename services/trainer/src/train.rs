@@ -5,7 +5,8 @@
 //! Adam states and `state.json`; `checkpoints/latest` names the newest complete one. A
 //! checkpoint is written to a temporary directory and renamed, and `latest` is replaced by
 //! rename, so `kill -9` at any moment leaves the previous checkpoint intact. Batches are a pure
-//! function of (seed, step), so a resumed run continues the same loss curve.
+//! function of (seed, step) and the samples drawn from, so a resumed run continues the same
+//! loss curve; for a `farm://` dataset the checkpoint keeps that sample set (`stream.json`).
 
 use std::fs;
 use std::io::Write;
@@ -25,6 +26,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::TrainConfig;
 use crate::data::{to_device, Dataset, PrefetchParams, Prefetcher};
+use crate::farm::{FarmAddress, FarmOptions, FarmSource, StreamState, STREAM_FILE};
 use crate::lights::LightCache;
 use crate::TrainError;
 
@@ -58,6 +60,9 @@ pub struct StepLog {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub perceptual: Option<f32>,
     pub samples_per_second: f32,
+    /// Samples the step drew from (a streamed dataset's grows at checkpoints).
+    #[serde(default)]
+    pub dataset_samples: u64,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -115,17 +120,22 @@ pub fn train(
     );
     drop(init_guard);
     let vgg = cfg
-        .vgg_weights
-        .as_deref()
-        .map(|path| Vgg16::load(path, &device))
+        .perceptual_weights()
+        .map(|path| Vgg16::load(&path, &device))
         .transpose()
-        .map_err(|e| TrainError::Config(format!("vgg_weights: {e}")))?;
+        .map_err(|e| {
+            TrainError::Config(format!(
+                "vgg_weights: {e}; or set vgg_weights = \"none\" to train without the perceptual loss"
+            ))
+        })?;
     let mut optim = lightfarm_nets::optimizer();
     let mut critic_optim = lightfarm_nets::optimizer();
     let mut start = 0u64;
+    let mut resume_stream = None;
     if let Some(dir) = latest_checkpoint(&cfg.out)? {
         (model, critic, optim, critic_optim, start) =
             load_checkpoint(&dir, model, critic, optim, critic_optim)?;
+        resume_stream = StreamState::load(&dir)?;
         tracing::info!(step = start, checkpoint = %dir.display(), "resuming");
     }
     truncate_losses(&cfg.out.join(LOSS_FILE), start)?;
@@ -140,20 +150,24 @@ pub fn train(
         });
     }
 
-    let dataset = Arc::new(Dataset::open(&cfg.dataset, &cfg.split)?);
+    let dataset = Arc::new(open_dataset(cfg, resume_stream, cancel)?);
     let lights = Arc::new(LightCache::new(catalog));
-    let mut prefetch = Prefetcher::start(
-        dataset.clone(),
-        lights,
-        PrefetchParams {
-            seed: cfg.seed,
-            batch: cfg.batch,
-            crop: cfg.crop,
-            start,
-            end: cfg.steps,
-            threads: cfg.loader_threads,
-        },
-    );
+    let prefetcher = |from: u64| {
+        Prefetcher::start(
+            dataset.clone(),
+            dataset.items(),
+            lights.clone(),
+            PrefetchParams {
+                seed: cfg.seed,
+                batch: cfg.batch,
+                crop: cfg.crop,
+                start: from,
+                end: cfg.steps,
+                threads: cfg.loader_threads,
+            },
+        )
+    };
+    let mut prefetch = prefetcher(start);
     let multiple = cfg.net.relight().size_multiple();
     let mut log = fs::OpenOptions::new()
         .create(true)
@@ -166,6 +180,7 @@ pub fn train(
     while step < cfg.steps {
         let started = Instant::now();
         let examples = prefetch.next_batch()?;
+        let drawn_from = prefetch.items() as u64;
         let size = examples[0].size;
         if size % multiple != 0 {
             return Err(TrainError::Config(format!(
@@ -217,6 +232,7 @@ pub fn train(
             critic: critic_value,
             perceptual: loss.perceptual.as_ref().map(scalar),
             samples_per_second: examples.len() as f32 / started.elapsed().as_secs_f32().max(1e-9),
+            dataset_samples: drawn_from,
         };
         let line = serde_json::to_string(&entry).map_err(|e| TrainError::Config(e.to_string()))?;
         writeln!(log, "{line}").map_err(|e| TrainError::io(&cfg.out.join(LOSS_FILE), e))?;
@@ -225,8 +241,27 @@ pub fn train(
         if step.is_multiple_of(cfg.checkpoint_every) || step == cfg.steps || cancelled {
             log.flush()
                 .map_err(|e| TrainError::io(&cfg.out.join(LOSS_FILE), e))?;
-            checkpoint =
-                save_checkpoint(&cfg.out, step, &model, &critic, &optim, &critic_optim, cfg)?;
+            // A stream's new samples join here, and the checkpoint records the set that steps
+            // from here on draw from, so a resumed run draws the same batches.
+            let grew = step.is_multiple_of(cfg.checkpoint_every)
+                && step < cfg.steps
+                && dataset.refresh()?;
+            let stream = dataset.stream_state();
+            checkpoint = save_checkpoint(
+                &cfg.out,
+                step,
+                (&model, &critic, &optim, &critic_optim),
+                stream.as_deref(),
+                cfg,
+            )?;
+            if grew {
+                tracing::info!(
+                    step,
+                    samples = dataset.len(),
+                    "new samples of the stream join training"
+                );
+                prefetch = prefetcher(step);
+            }
         }
         if cancelled {
             break;
@@ -292,13 +327,48 @@ pub fn latest_checkpoint(out: &Path) -> Result<Option<PathBuf>, TrainError> {
     }
 }
 
+/// A folder export, or a coordinator job followed from `resume`'s snapshot (a checkpoint's) or
+/// from its first sample.
+fn open_dataset(
+    cfg: &TrainConfig,
+    resume: Option<StreamState>,
+    cancel: &AtomicBool,
+) -> Result<Dataset, TrainError> {
+    let text = cfg.dataset.to_string_lossy();
+    if !FarmAddress::is_farm(&text) {
+        return Dataset::open(&cfg.dataset, &cfg.split);
+    }
+    let addr = FarmAddress::parse(&text)?;
+    let token = cfg.token.as_deref().ok_or_else(|| {
+        TrainError::Config(format!(
+            "dataset {text}: the coordinator's token is needed: pass --token or set LIGHTFARM_TOKEN"
+        ))
+    })?;
+    let opts = FarmOptions {
+        token,
+        tls_ca: cfg.stream.tls_ca.as_deref(),
+        cache_dir: cfg.cache_dir(),
+        cache_bytes: (cfg.stream.cache_gb * (1u64 << 30) as f64) as u64,
+        split: &cfg.split,
+        crop: cfg.crop,
+    };
+    Ok(Dataset::farm(FarmSource::open(
+        &addr, &opts, resume, cancel,
+    )?))
+}
+
+type Modules<'a> = (
+    &'a RelightNet,
+    &'a PatchGan,
+    &'a ModuleOptimizer,
+    &'a ModuleOptimizer,
+);
+
 fn save_checkpoint(
     out: &Path,
     step: u64,
-    model: &RelightNet,
-    critic: &PatchGan,
-    optim: &ModuleOptimizer,
-    critic_optim: &ModuleOptimizer,
+    (model, critic, optim, critic_optim): Modules<'_>,
+    stream: Option<&StreamState>,
     cfg: &TrainConfig,
 ) -> Result<PathBuf, TrainError> {
     let root = out.join(CHECKPOINTS);
@@ -322,6 +392,10 @@ fn save_checkpoint(
     write_atomic(&tmp.join(NET_FILE), &net)?;
     let state = serde_json::to_vec(&CheckpointState { step }).map_err(|e| ck(e.to_string()))?;
     write_atomic(&tmp.join(STATE_FILE), &state)?;
+    if let Some(stream) = stream {
+        let bytes = serde_json::to_vec(stream).map_err(|e| ck(e.to_string()))?;
+        write_atomic(&tmp.join(STREAM_FILE), &bytes)?;
+    }
     sync_dir(&tmp);
     if dir.exists() {
         fs::remove_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;

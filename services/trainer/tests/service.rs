@@ -37,6 +37,7 @@ async fn submit_watch_checkpoints_and_relight() {
         datasets: dataset.parent().unwrap().to_owned(),
         catalog: lightfarm_scene::Catalog::builtin().unwrap(),
         device: "cpu".into(),
+        coordinator_token: None,
     })
     .unwrap();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();

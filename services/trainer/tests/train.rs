@@ -15,7 +15,7 @@ use lightfarm_trainer::StepLog;
 fn config(out: &std::path::Path, steps: u64, render_net: RenderNet) -> TrainConfig {
     let mut cfg: TrainConfig = toml::from_str(&format!(
         "dataset = {:?}\nout = {:?}\nsplit = \"all\"\nsteps = {steps}\nbatch = {}\nlr = 5e-3\ncheckpoint_every = 10\n\
-         device = \"cpu\"\nloader_threads = 1\n[loss]\nadversarial = 0.0\n",
+         device = \"cpu\"\nloader_threads = 1\nvgg_weights = \"none\"\n[loss]\nadversarial = 0.0\n",
         common::dataset(),
         out,
         common::COUNT
@@ -238,6 +238,26 @@ fn truncated_or_foreign_exrs_are_errors_naming_the_sample() {
         .expect_err("junk")
         .to_string();
     assert!(err.contains("junk") && err.contains("OpenEXR"), "{err}");
+}
+
+/// The paper's perceptual loss is on unless a config turns it off.
+#[test]
+fn the_perceptual_loss_uses_the_builtin_weights_by_default() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("train.toml");
+    let load = |extra: &str| {
+        std::fs::write(&path, format!("dataset = \"d\"\nout = \"o\"\n{extra}")).unwrap();
+        TrainConfig::load(&path).unwrap().perceptual_weights()
+    };
+    let builtin = Some(lightfarm_nets::vgg::builtin_weights());
+    assert_eq!(load(""), builtin);
+    assert_eq!(load("vgg_weights = \"builtin\"\n"), builtin);
+    assert_eq!(load("vgg_weights = \"none\"\n"), None);
+    assert_eq!(load("[loss]\nperceptual = 0.0\n"), None);
+    assert_eq!(
+        load("vgg_weights = \"w.safetensors\"\n"),
+        Some(tmp.path().join("w.safetensors"))
+    );
 }
 
 #[test]
