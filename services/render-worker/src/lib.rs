@@ -95,6 +95,7 @@ pub async fn run(
         idle = Duration::from_millis(200);
         let span = tracing::info_span!("task", job = %task.job_id, index = task.index);
         let _enter = span.enter();
+        tracing::info!(lease = %task.lease_id, "leased");
         match render_task(&client, &reg, &renderer, &cache, &outbox, &task, heartbeat).await {
             Ok(entry) => {
                 outbox.upload(&client, &entry).await?;
