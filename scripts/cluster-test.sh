@@ -64,38 +64,35 @@ echo "the trainer trains on the export and survives docker kill"
 mkdir -p deploy/datasets
 rm -rf "deploy/datasets/$job"
 "$B" export "$job" --format folder --out "deploy/datasets/$job" >/dev/null
-cfg=$(mktemp)
-printf 'steps = 40\nbatch = 2\ncrop = 16\ncheckpoint_every = 5\n[net]\nwidths = [8, 16, 32]\ncritic_width = 8\n' > "$cfg"
 trainer=http://127.0.0.1:${LIGHTFARM_TRAINER_PORT:-7071}
 for _ in $(seq 1 120); do "$B" train-jobs --trainer "$trainer" >/dev/null 2>&1 && break; sleep 0.5; done
-tlog=$(mktemp)
-"$B" train "$cfg" --trainer "$trainer" --dataset "$job" >"$tlog" 2>&1 &
-client=$!
-losses() { docker exec lightfarm_trainer_1 sh -c 'cat /data/jobs/*/run/losses.jsonl 2>/dev/null | wc -l'; }
-for _ in $(seq 1 600); do [ "$(losses || echo 0)" -ge 8 ] 2>/dev/null && break; sleep 0.5; done
-echo "docker kill the trainer at $(losses) steps"
-docker kill lightfarm_trainer_1 >/dev/null
-sleep 2
-docker start lightfarm_trainer_1 >/dev/null
-wait "$client" || { echo "FAIL: the train client failed:"; tail -5 "$tlog"; exit 1; }
-grep -q "completed at step 40" "$tlog" || { echo "FAIL: job did not complete:"; tail -5 "$tlog"; exit 1; }
-steps=$(docker exec lightfarm_trainer_1 sh -c 'cat /data/jobs/*/run/losses.jsonl' | grep -o '"step": *[0-9]*' | grep -o '[0-9]*$' | tr '\n' ' ')
-[ "$steps" = "$(seq -s ' ' 1 40) " ] || { echo "FAIL: loss steps are not 1..40 once each: $steps"; exit 1; }
+# The newest train job's loss log, read inside the trainer container.
+newest_losses='cat "$(ls -d /data/jobs/*/ | sort | tail -1)run/losses.jsonl" 2>/dev/null'
+logged() { docker exec lightfarm_trainer_1 sh -c "$newest_losses | wc -l"; }
+# train_through_kill CONFIG DATASET STEPS AT VICTIM PAUSE: submits a train job, `docker kill`s
+# the VICTIM container once AT steps are logged, starts it again PAUSE seconds later, and checks
+# that the job completes with steps 1..STEPS logged once each.
+train_through_kill() {
+    local cfg=$1 dataset=$2 steps=$3 at=$4 victim=$5 pause=$6 log client got
+    log=$(mktemp)
+    "$B" train "$cfg" --trainer "$trainer" --dataset "$dataset" >"$log" 2>&1 &
+    client=$!
+    for _ in $(seq 1 600); do [ "$(logged || echo 0)" -ge "$at" ] 2>/dev/null && break; sleep 0.5; done
+    echo "docker kill $victim at $(logged) steps"
+    docker kill "$victim" >/dev/null
+    sleep "$pause"
+    docker start "$victim" >/dev/null
+    wait "$client" || { echo "FAIL: the train client failed:"; tail -5 "$log"; exit 1; }
+    grep -q "completed at step $steps" "$log" || { echo "FAIL: job did not complete:"; tail -5 "$log"; exit 1; }
+    got=$(docker exec lightfarm_trainer_1 sh -c "$newest_losses" | grep -o '"step": *[0-9]*' | grep -o '[0-9]*$' | tr '\n' ' ')
+    [ "$got" = "$(seq -s ' ' 1 "$steps") " ] || { echo "FAIL: loss steps are not 1..$steps once each: $got"; exit 1; }
+}
+cfg=$(mktemp)
+printf 'steps = 40\nbatch = 2\ncrop = 16\ncheckpoint_every = 5\n[net]\nwidths = [8, 16, 32]\ncritic_width = 8\n' > "$cfg"
+train_through_kill "$cfg" "$job" 40 8 lightfarm_trainer_1 2
 echo "the trainer trains from the coordinator directly (farm://) while the coordinator is docker killed"
 scfg=$(mktemp)
 printf 'steps = 30\nbatch = 2\ncrop = 16\ncheckpoint_every = 5\nvgg_weights = "none"\n[net]\nwidths = [8, 16, 32]\ncritic_width = 8\n' > "$scfg"
-slog=$(mktemp)
-"$B" train "$scfg" --trainer "$trainer" --dataset "farm://coordinator:7070/$job" >"$slog" 2>&1 &
-client=$!
-newest_losses() { docker exec lightfarm_trainer_1 sh -c 'cat "$(ls -d /data/jobs/*/ | sort | tail -1)run/losses.jsonl" 2>/dev/null | wc -l'; }
-for _ in $(seq 1 600); do [ "$(newest_losses || echo 0)" -ge 6 ] 2>/dev/null && break; sleep 0.5; done
-echo "docker kill the coordinator at $(newest_losses) streamed steps"
-docker kill lightfarm_coordinator_1 >/dev/null
-sleep 5
-docker start lightfarm_coordinator_1 >/dev/null
-wait "$client" || { echo "FAIL: the streamed train client failed:"; tail -5 "$slog"; exit 1; }
-grep -q "completed at step 30" "$slog" || { echo "FAIL: streamed job did not complete:"; tail -5 "$slog"; exit 1; }
-steps=$(docker exec lightfarm_trainer_1 sh -c 'cat "$(ls -d /data/jobs/*/ | sort | tail -1)run/losses.jsonl"' | grep -o '"step": *[0-9]*' | grep -o '[0-9]*$' | tr '\n' ' ')
-[ "$steps" = "$(seq -s ' ' 1 30) " ] || { echo "FAIL: streamed loss steps are not 1..30 once each: $steps"; exit 1; }
+train_through_kill "$scfg" "farm://coordinator:7070/$job" 30 6 lightfarm_coordinator_1 5
 "$B" train-jobs --trainer "$trainer"
 echo "PASS"
