@@ -159,6 +159,45 @@ impl PrefilteredEnv {
             phong,
         }
     }
+
+    /// The prefiltered maps of the sum of two environments, from theirs: projection and
+    /// prefiltering are linear. Lights switched on together (OLAT pairs) cost an addition, not
+    /// a prefilter. None when the two were prefiltered at different resolutions.
+    pub fn sum(&self, other: &PrefilteredEnv) -> Option<PrefilteredEnv> {
+        if self.phong.len() != other.phong.len() {
+            return None;
+        }
+        let mut sh = self.sh.coeffs;
+        for (a, b) in sh.iter_mut().zip(&other.sh.coeffs) {
+            for c in 0..3 {
+                a[c] += b[c];
+            }
+        }
+        let phong = self
+            .phong
+            .iter()
+            .zip(&other.phong)
+            .map(|(a, b)| {
+                (a.exponent == b.exponent && a.width == b.width && a.height == b.height).then(
+                    || PrefilteredMap {
+                        exponent: a.exponent,
+                        width: a.width,
+                        height: a.height,
+                        texels: a
+                            .texels
+                            .iter()
+                            .zip(&b.texels)
+                            .map(|(x, y)| [x[0] + y[0], x[1] + y[1], x[2] + y[2]])
+                            .collect(),
+                    },
+                )
+            })
+            .collect::<Option<Vec<_>>>()?;
+        Some(PrefilteredEnv {
+            sh: ShRadiance { coeffs: sh },
+            phong,
+        })
+    }
 }
 
 /// (output width, input width) per exponent: the lobe's half-maximum angle spans at least two
