@@ -5,11 +5,13 @@
 //! Tensors are NCHW f32. Networks are backend-agnostic: [`device::select`] picks Burn's flex
 //! CPU backend or wgpu.
 
+pub mod adapt;
 pub mod device;
 pub mod lightmap;
 pub mod loss;
 pub mod metrics;
 pub mod relight;
+pub mod resnet;
 pub mod unet;
 pub mod vgg;
 
@@ -19,9 +21,11 @@ use burn::module::{Module, ModuleMapper, Param, ParamId};
 use burn::prelude::Tensor;
 use burn::store::{ModuleSnapshot, SafetensorsStore};
 
+pub use adapt::{AdaptTarget, AdaptWeights, Adapter};
 pub use lightmap::{LightBatch, LightInput};
 pub use loss::{critic_loss, generator_loss, LossWeights, PatchGan, PatchGanConfig, Targets};
-pub use relight::{RelightConfig, RelightNet, Relit, RenderNet};
+pub use relight::{Decomposition, RelightConfig, RelightNet, Relit, RenderNet};
+pub use resnet::{ResNet, ResNetConfig, RESNET_SIZE_MULTIPLE};
 pub use vgg::{perceptual_loss, Lpips, Vgg16};
 
 #[derive(Debug, thiserror::Error)]

@@ -98,17 +98,49 @@ pub struct Relit {
     pub relit: Tensor<4>,
 }
 
+/// What f_N and f_A infer from a portrait, independent of the target lighting: computed once
+/// and rendered under as many lightings as needed ([`RelightNet::render`]).
+#[derive(Clone, Debug)]
+pub struct Decomposition {
+    pub normal: Tensor<4>,
+    pub normal_lens: Tensor<4>,
+    pub albedo: Tensor<4>,
+}
+
 impl RelightNet {
     /// `input`: [B, 3, H, W] masked, exposure-normalised foreground; `mask`: [B, 1, H, W].
     pub fn forward(&self, input: Tensor<4>, mask: Tensor<4>, light: &LightBatch) -> Relit {
+        let d = self.decompose(input.clone());
+        self.render(input, mask, light, &d)
+    }
+
+    /// f_N → (N, N_l), then f_A → A.
+    pub fn decompose(&self, input: Tensor<4>) -> Decomposition {
         let geometry = self.f_n.forward(input.clone());
         let normal = unit(tanh(geometry.clone().narrow(1, 0, 3)));
         let normal_lens = unit(tanh(geometry.narrow(1, 3, 3)));
         let albedo = sigmoid(
             self.f_a
-                .forward(Tensor::cat(vec![input.clone(), normal.clone()], 1)),
+                .forward(Tensor::cat(vec![input, normal.clone()], 1)),
         );
+        Decomposition {
+            normal,
+            normal_lens,
+            albedo,
+        }
+    }
 
+    /// f_S and f_R under `light`, from a decomposition (the network's own, or one whose albedo
+    /// the synthetic-to-real network refined).
+    pub fn render(
+        &self,
+        input: Tensor<4>,
+        mask: Tensor<4>,
+        light: &LightBatch,
+        d: &Decomposition,
+    ) -> Relit {
+        let (normal, normal_lens, albedo) =
+            (d.normal.clone(), d.normal_lens.clone(), d.albedo.clone());
         // Light maps are looked up, not learned through: the normals get their own supervision
         // and bilinear lookups have no useful gradient across texels.
         let n = normal.clone().detach();
