@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use lightfarm_proto::v1 as pb;
 
-const BIN: &str = env!("CARGO_BIN_EXE_lightfarm");
+const BIN: &str = env!("CARGO_BIN_EXE_lightfarm-under-test");
 const TOKEN: &str = "fault-token";
 const COUNT: u64 = 50;
 
@@ -106,11 +106,11 @@ impl Api {
         }
     }
 
-    fn jobs(&self) -> pb::jobs_client::JobsClient<lightfarm_worker::client::AuthedChannel> {
+    fn jobs(&self) -> pb::jobs_client::JobsClient<lightfarm_proto::client::AuthedChannel> {
         // A lazy channel needs the runtime's reactor to exist.
         let _in_runtime = self.rt.enter();
         let (ch, auth) =
-            lightfarm_worker::client::channel(&self.addr, TOKEN, None).expect("channel");
+            lightfarm_proto::client::channel(&self.addr, TOKEN, None).expect("channel");
         pb::jobs_client::JobsClient::with_interceptor(ch, auth)
     }
 
@@ -146,7 +146,7 @@ impl Api {
     fn samples(&self, id: &str) -> Vec<pb::SampleInfo> {
         let _in_runtime = self.rt.enter();
         let (ch, auth) =
-            lightfarm_worker::client::channel(&self.addr, TOKEN, None).expect("channel");
+            lightfarm_proto::client::channel(&self.addr, TOKEN, None).expect("channel");
         let mut c = pb::samples_client::SamplesClient::with_interceptor(ch, auth);
         self.rt
             .block_on(c.list_samples(pb::ListSamplesRequest {

@@ -361,6 +361,7 @@ fn train_and_relight(a: &DemoArgs) -> Result<()> {
         model: run.clone(),
         image: entry.exr.clone(),
         mask: None,
+        no_matte: false,
         target: crate::olat_cmd::TargetHdri {
             hdri: hdri.clone(),
             rotation: 0.0,

@@ -1,5 +1,8 @@
-//! `lightfarm`: the command line of the virtual light stage.
+//! `lightfarm`: the command line of the virtual light stage. The binary is `main()`; it is a
+//! library so that the workspace's cross-service tests (`tests/`) can build the same program
+//! under their own package and run it as real processes.
 
+mod adapt_cmd;
 mod demo_cmd;
 mod farm_cmd;
 mod olat_cmd;
@@ -67,6 +70,9 @@ enum Command {
     /// Train the relighting network on a folder export (resumes from the run's newest
     /// checkpoint; Ctrl-C stops after a checkpoint).
     Train(train_cmd::TrainArgs),
+    /// Adapt a trained model to real photos (the paper's synthetic-to-real step): f_Ā learns
+    /// from a folder of portraits while the model stays frozen.
+    Adapt(adapt_cmd::AdaptArgs),
     /// List the training jobs of a trainer service (`lightfarm serve trainer`).
     TrainJobs(train_cmd::TrainJobsArgs),
     /// Relight a portrait with a trained model under an HDRI.
@@ -78,7 +84,8 @@ enum Command {
     Eval(train_cmd::EvalArgs),
 }
 
-fn main() {
+/// The whole program: parses the arguments, runs the command, exits 1 with the error chain.
+pub fn main() {
     tracing_subscriber::fmt()
         .with_env_filter(
             EnvFilter::try_from_env("LIGHTFARM_LOG").unwrap_or_else(|_| EnvFilter::new("warn")),
@@ -106,6 +113,7 @@ fn main() {
         Command::Samples(a) => farm_cmd::samples(a),
         Command::Export(a) => farm_cmd::export(a),
         Command::Train(a) => train_cmd::train(a),
+        Command::Adapt(a) => adapt_cmd::run(a),
         Command::TrainJobs(a) => train_cmd::train_jobs(a),
         Command::Relight(a) => train_cmd::relight(*a),
         Command::RelightOlat(a) => olat_cmd::run(*a),

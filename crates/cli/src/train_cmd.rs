@@ -9,7 +9,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lightfarm_trainer::config::TrainConfig;
 use lightfarm_trainer::eval::{evaluate, table};
-use lightfarm_trainer::image_io::{load_portrait, write_png};
+use lightfarm_trainer::image_io::{gray_png_bytes, load_portrait, write_png};
 use lightfarm_trainer::infer::{load_model, normal_colours, resolve_model_dir};
 use lightfarm_trainer::lights::{camera_to_env, identity_camera, Lighting};
 use lightfarm_trainer::train::RUN_FILE;
@@ -60,7 +60,7 @@ impl Observer for Bar {
 }
 
 /// Sets the returned flag on Ctrl-C or SIGTERM, so training stops after a checkpoint.
-fn cancel_on_signal() -> Result<Arc<AtomicBool>> {
+pub(crate) fn cancel_on_signal() -> Result<Arc<AtomicBool>> {
     let flag = Arc::new(AtomicBool::new(false));
     let rt = crate::farm_cmd::runtime()?;
     let f = flag.clone();
@@ -260,9 +260,13 @@ pub struct RelightArgs {
     /// Portrait: PNG/JPEG (sRGB; alpha = mask), an RGB(A) EXR, or a lightfarm sample EXR.
     #[arg(long)]
     pub image: PathBuf,
-    /// Foreground mask (white = subject); default: the image's alpha, or all of it.
+    /// Foreground mask (white = subject); default: the image's alpha, a sample's coverage, or
+    /// for a photo without alpha the matte of MODNet (installed by ./scripts/fetch-models.sh).
     #[arg(long)]
     pub mask: Option<PathBuf>,
+    /// Do not matte a photo without alpha or --mask: all of it is the subject.
+    #[arg(long)]
+    pub no_matte: bool,
     #[command(flatten)]
     pub target: crate::olat_cmd::TargetHdri,
     /// Relit image (PNG) with the diffuse and mirror balls inset; the network's normal,
@@ -280,7 +284,12 @@ fn load_lighting(hdri: &str, assets: &Option<PathBuf>) -> Result<Lighting> {
 pub fn relight(a: RelightArgs) -> Result<()> {
     crate::render_cmd::ensure_parent(&a.out, "--out")?;
     let model = load_model(&a.model, &a.device)?;
-    let portrait = load_portrait(&a.image, a.mask.as_deref())?;
+    let matting = lightfarm_photo::LazyMatting::builtin();
+    let portrait = load_portrait(
+        &a.image,
+        a.mask.as_deref(),
+        (!a.no_matte).then_some(&matting),
+    )?;
     let t = &a.target;
     let lighting = load_lighting(&t.hdri, &t.assets)?;
     let lighting_sample = lightfarm_scene::expand::LightingSample {
@@ -306,10 +315,18 @@ pub fn relight(a: RelightArgs) -> Result<()> {
     write_png(&side("albedo"), w, h, &r.albedo)?;
     write_png(&side("diffuse"), w, h, &r.diffuse)?;
     write_png(&side("specular"), w, h, &r.specular)?;
+    let mask_png = side("mask");
+    std::fs::write(&mask_png, gray_png_bytes(w, h, &portrait.mask)?)
+        .with_context(|| format!("writing {}", mask_png.display()))?;
     println!(
-        "wrote {} (+ _normal, _normal_lens, _albedo, _diffuse, _specular) with model {}",
+        "wrote {} (+ _normal, _normal_lens, _albedo, _diffuse, _specular, _mask) with model {}{}",
         a.out.display(),
-        model.dir.display()
+        model.dir.display(),
+        if portrait.matted {
+            "; the foreground is MODNet's matte of the photo (_mask.png; --mask or --no-matte to change it)"
+        } else {
+            ""
+        }
     );
     Ok(())
 }

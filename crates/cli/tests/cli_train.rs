@@ -241,6 +241,83 @@ fn relight_and_eval_write_what_they_promise() {
         .collect();
     assert_relit_masked(&img, &photo_mask, "the relit photo");
 
+    // A real photograph without alpha or --mask is matted with MODNet (installed by
+    // fetch-models.sh): a 128² copy of the astronaut portrait. Its `_mask.png` is the matte:
+    // face foreground, the flag in the top-left corner background.
+    let astronaut = image::open(common::repo().join("assets/photos/astronaut.png"))
+        .expect("assets/photos/astronaut.png: run ./scripts/fetch-models.sh")
+        .resize_exact(128, 128, image::imageops::FilterType::Triangle)
+        .to_rgb8();
+    let photo = tmp.path().join("astronaut.png");
+    astronaut.save(&photo).expect("png");
+    let hdr = common::repo().join("assets/hdri/venice_sunset_1k.hdr");
+    let relight_photo = |extra: &[&str], name: &str| {
+        let out = tmp.path().join(format!("{name}.png"));
+        let mut args = vec![
+            "relight",
+            "--model",
+            m,
+            "--image",
+            photo.to_str().expect("utf8"),
+            "--hdri",
+            hdr.to_str().expect("utf8"),
+            "--out",
+            out.to_str().expect("utf8"),
+        ];
+        args.extend_from_slice(extra);
+        let r = run(&args);
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let mask = image::open(tmp.path().join(format!("{name}_mask.png")))
+            .expect("_mask.png")
+            .to_luma8();
+        assert_eq!((mask.width(), mask.height()), (128, 128));
+        (String::from_utf8_lossy(&r.stdout).into_owned(), mask)
+    };
+    let (said, mask) = relight_photo(&[], "astronaut_relit");
+    assert!(said.contains("MODNet"), "{said}");
+    assert!(
+        mask.get_pixel(55, 30)[0] > 240,
+        "face {:?}",
+        mask.get_pixel(55, 30)
+    );
+    assert!(
+        mask.get_pixel(4, 4)[0] < 15,
+        "corner {:?}",
+        mask.get_pixel(4, 4)
+    );
+    let relit = image::open(tmp.path().join("astronaut_relit.png"))
+        .expect("png")
+        .to_rgb8();
+    let corner = relit.get_pixel(4, 4).0;
+    assert!(
+        corner.iter().all(|&v| v < 40),
+        "background is not relit: {corner:?}"
+    );
+    let (said, mask) = relight_photo(&["--no-matte"], "astronaut_whole");
+    assert!(!said.contains("MODNet"), "{said}");
+    assert!(
+        mask.pixels().all(|p| p[0] == 255),
+        "--no-matte: all foreground"
+    );
+    // MODNet not installed: the error names the file, the script and --mask.
+    let empty = tempfile::tempdir().expect("tmp");
+    let r = bin()
+        .args(["relight", "--model", m, "--image"])
+        .arg(&photo)
+        .arg("--hdri")
+        .arg(&hdr)
+        .arg("--out")
+        .arg(tmp.path().join("never.png"))
+        .env("LIGHTFARM_ASSETS", empty.path())
+        .output()
+        .expect("run lightfarm");
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("modnet.onnx") && err.contains("fetch-models.sh") && err.contains("--mask"),
+        "{err}"
+    );
+
     // eval: the input row and one per model.
     let json = tmp.path().join("eval.json");
     let r = run(&[
@@ -381,156 +458,4 @@ fn bad_input_is_an_error_naming_it() {
         assert!(!err.contains("panicked"), "{err}");
     }
     assert!(!out.exists());
-}
-
-/// `lightfarm serve trainer` killed with SIGKILL mid-job: restarted on the same data directory,
-/// it resumes the job from its newest checkpoint and the loss log stays one line per step.
-#[test]
-fn the_trainer_service_resumes_a_job_after_sigkill() {
-    use lightfarm_proto::v1 as pb;
-    let tmp = tempfile::tempdir().expect("tmp");
-    let data = tmp.path().join("trainer");
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .expect("port")
-        .local_addr()
-        .expect("addr")
-        .port();
-    let listen = format!("127.0.0.1:{port}");
-    let start = || {
-        bin()
-            .args([
-                "serve",
-                "trainer",
-                "--data",
-                data.to_str().expect("utf8"),
-                "--listen",
-                &listen,
-                "--token",
-                "t0k",
-            ])
-            .arg("--datasets")
-            .arg(dataset().parent().expect("parent"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("spawn trainer")
-    };
-    let rt = tokio::runtime::Runtime::new().expect("runtime");
-    let connect = || {
-        rt.block_on(async {
-            let started = Instant::now();
-            loop {
-                let ep = tonic::transport::Endpoint::from_shared(format!("http://{listen}"))
-                    .expect("endpoint");
-                if let Ok(ch) = ep.connect().await {
-                    let auth = |mut r: tonic::Request<()>| {
-                        r.metadata_mut()
-                            .insert("authorization", "Bearer t0k".parse().expect("header"));
-                        Ok(r)
-                    };
-                    return pb::trainer_client::TrainerClient::with_interceptor(ch, auth);
-                }
-                assert!(
-                    started.elapsed() < Duration::from_secs(30),
-                    "trainer did not come up"
-                );
-                tokio::time::sleep(Duration::from_millis(100)).await;
-            }
-        })
-    };
-    let step_of = |c: &mut pb::trainer_client::TrainerClient<_>, id: &str| -> (u64, i32) {
-        let jobs = rt
-            .block_on(c.list_train_jobs(pb::ListTrainJobsRequest {}))
-            .expect("list")
-            .into_inner()
-            .jobs;
-        let j = jobs.into_iter().find(|j| j.id == id).expect("job listed");
-        (j.step, j.state)
-    };
-    let wait_step = |c: &mut pb::trainer_client::TrainerClient<_>, id: &str, min: u64| {
-        let started = Instant::now();
-        while step_of(c, id).0 < min {
-            assert!(
-                started.elapsed() < Duration::from_secs(300),
-                "job stuck below step {min}"
-            );
-            std::thread::sleep(Duration::from_millis(100));
-        }
-    };
-
-    let mut server = start();
-    let mut c = connect();
-    let job = rt
-        .block_on(c.submit_train_job(pb::SubmitTrainJobRequest {
-            config_toml: "crop = 16\ncheckpoint_every = 3\nloader_threads = 1\n[net]\nwidths = [8, 16, 32]\ncritic_width = 8\n".into(),
-            dataset: "dataset".into(),
-            split: "all".into(),
-            steps: 100_000,
-            batch: 2,
-        }))
-        .expect("submit")
-        .into_inner();
-    wait_step(&mut c, &job.id, 7);
-    server.kill().expect("SIGKILL");
-    let _ = server.wait();
-
-    let mut server = start();
-    let mut c = connect();
-    wait_step(&mut c, &job.id, 12);
-    let cancelled = rt
-        .block_on(c.cancel_train_job(pb::TrainJobRef {
-            job_id: job.id.clone(),
-        }))
-        .expect("cancel")
-        .into_inner();
-    assert_eq!(cancelled.id, job.id);
-    let started = Instant::now();
-    while step_of(&mut c, &job.id).1 != pb::TrainJobState::Cancelled as i32 {
-        assert!(
-            started.elapsed() < Duration::from_secs(60),
-            "cancel did not take"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    // `lightfarm train --trainer` submits a config (its `dataset` names an export under the
-    // trainer's --datasets) and follows the job to its end.
-    let cfg = tmp.path().join("remote.toml");
-    std::fs::write(
-        &cfg,
-        "dataset = \"dataset\"\nout = \"ignored\"\nsplit = \"all\"\nbatch = 2\ncrop = 16\nloader_threads = 1\n\
-         [net]\nwidths = [8, 16, 32]\ncritic_width = 8\n",
-    )
-    .expect("config");
-    let r = bin()
-        .args([
-            "train",
-            cfg.to_str().expect("utf8"),
-            "--steps",
-            "4",
-            "--trainer",
-            &format!("http://{listen}"),
-            "--token",
-            "t0k",
-        ])
-        .output()
-        .expect("remote train");
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
-    assert!(
-        String::from_utf8_lossy(&r.stdout).contains("completed at step 4"),
-        "{}",
-        String::from_utf8_lossy(&r.stdout)
-    );
-
-    server.kill().expect("kill");
-    let _ = server.wait();
-    let steps: Vec<u64> = losses(&data.join("jobs").join(&job.id).join("run"))
-        .iter()
-        .map(|l| l["step"].as_u64().expect("step"))
-        .collect();
-    assert!(steps.len() >= 12, "{steps:?}");
-    assert_eq!(
-        steps,
-        (1..=steps.len() as u64).collect::<Vec<_>>(),
-        "one line per step across the kill"
-    );
 }

@@ -192,7 +192,7 @@ pub fn plan(seed: u64, step: u64, batch: usize, n: usize) -> Vec<Draw> {
 }
 
 /// SplitMix64 finaliser of `a` and `b`: a stateless, platform-independent hash.
-fn mix(a: u64, b: u64) -> u64 {
+pub(crate) fn mix(a: u64, b: u64) -> u64 {
     let mut z = a
         .wrapping_add(b.wrapping_mul(0x9e37_79b9_7f4a_7c15))
         .wrapping_add(0x9e37_79b9_7f4a_7c15);

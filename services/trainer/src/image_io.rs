@@ -1,7 +1,9 @@
 //! Portrait images in and out of `relight`: PNG/JPEG (sRGB) or OpenEXR (linear), an optional
-//! mask, and display PNGs.
+//! mask or a MODNet matte, and display PNGs.
 
 use std::path::Path;
+
+use lightfarm_photo::LazyMatting;
 
 use lightfarm_nets::metrics::srgb_encode;
 
@@ -16,6 +18,8 @@ pub struct Portrait {
     pub mask: Vec<f32>,
     /// Set when the input was a lightfarm sample EXR (its camera orients the light maps).
     pub sample: Option<SampleImages>,
+    /// The mask is MODNet's matte of the photo.
+    pub matted: bool,
 }
 
 /// sRGB → linear.
@@ -29,19 +33,29 @@ pub fn srgb_decode(v: f32) -> f32 {
 
 /// Reads `path`: a lightfarm sample EXR (lit0 and its mask), any RGB(A) EXR, or an 8/16-bit
 /// image (sRGB decoded; alpha is the mask). `mask` (white = subject) overrides the built-in one.
-pub fn load_portrait(path: &Path, mask: Option<&Path>) -> Result<Portrait, TrainError> {
+/// A photo with neither is matted with `matte` (MODNet) when given, else all foreground.
+pub fn load_portrait(
+    path: &Path,
+    mask: Option<&Path>,
+    matte: Option<&LazyMatting>,
+) -> Result<Portrait, TrainError> {
     let bad = |r: String| TrainError::Input(format!("--image {}: {r}", path.display()));
     let bytes = std::fs::read(path).map_err(|e| TrainError::io(path, e))?;
     let is_exr = bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]);
-    let mut p = if is_exr {
+    // `own_mask`: the file says what is foreground (a sample's coverage, an alpha channel).
+    let (mut p, own_mask) = if is_exr {
         match decode_sample(&bytes, &path.display().to_string()) {
-            Ok(s) => Portrait {
-                width: s.width,
-                height: s.height,
-                rgb: s.lit[0].clone(),
-                mask: s.mask.clone(),
-                sample: Some(s),
-            },
+            Ok(s) => (
+                Portrait {
+                    width: s.width,
+                    height: s.height,
+                    rgb: s.lit[0].clone(),
+                    mask: s.mask.clone(),
+                    sample: Some(s),
+                    matted: false,
+                },
+                true,
+            ),
             Err(_) => load_plain_exr(&bytes).map_err(bad)?,
         }
     } else {
@@ -50,7 +64,7 @@ pub fn load_portrait(path: &Path, mask: Option<&Path>) -> Result<Portrait, Train
         let rgba = img.to_rgba32f();
         let (w, h) = (rgba.width() as usize, rgba.height() as usize);
         let has_alpha = img.color().has_alpha();
-        Portrait {
+        let p = Portrait {
             width: w,
             height: h,
             rgb: rgba
@@ -62,7 +76,9 @@ pub fn load_portrait(path: &Path, mask: Option<&Path>) -> Result<Portrait, Train
                 .map(|p| if has_alpha { p[3] } else { 1.0 })
                 .collect(),
             sample: None,
-        }
+            matted: false,
+        };
+        (p, has_alpha)
     };
     if p.width == 0 || p.height == 0 || p.width > 8192 || p.height > 8192 {
         return Err(bad(format!(
@@ -90,6 +106,10 @@ pub fn load_portrait(path: &Path, mask: Option<&Path>) -> Result<Portrait, Train
             )));
         }
         p.mask = img.pixels().map(|v| v[0].clamp(0.0, 1.0)).collect();
+    } else if let (false, Some(matte)) = (own_mask, matte) {
+        let srgb: Vec<[f32; 3]> = p.rgb.iter().map(|c| c.map(srgb_encode)).collect();
+        p.mask = matte.get()?.alpha(&srgb, p.width, p.height)?;
+        p.matted = true;
     }
     for (c, &m) in p.rgb.iter_mut().zip(&p.mask) {
         *c = c.map(|v| if v.is_finite() { v.max(0.0) * m } else { 0.0 });
@@ -97,7 +117,8 @@ pub fn load_portrait(path: &Path, mask: Option<&Path>) -> Result<Portrait, Train
     Ok(p)
 }
 
-fn load_plain_exr(bytes: &[u8]) -> Result<Portrait, String> {
+/// An RGB(A) EXR, and whether it had an alpha channel.
+fn load_plain_exr(bytes: &[u8]) -> Result<(Portrait, bool), String> {
     let img = read_first_layer(bytes)?;
     let layer = &img.layer_data;
     let (w, h) = (layer.size.width(), layer.size.height());
@@ -113,14 +134,17 @@ fn load_plain_exr(bytes: &[u8]) -> Result<Portrait, String> {
         (Some(r), Some(g), Some(b)) => (r, g, b),
         _ => return Err("has no R, G, B channels".into()),
     };
+    let has_alpha = find("A").is_some();
     let a = find("A").unwrap_or_else(|| vec![1.0; w * h]);
-    Ok(Portrait {
+    let p = Portrait {
         width: w,
         height: h,
         rgb: (0..w * h).map(|i| [r[i], g[i], b[i]]).collect(),
         mask: a.into_iter().map(|v| v.clamp(0.0, 1.0)).collect(),
         sample: None,
-    })
+        matted: false,
+    };
+    Ok((p, has_alpha))
 }
 
 /// Writes linear RGB as an sRGB PNG (clamped).
@@ -142,6 +166,27 @@ pub fn png_bytes(width: usize, height: usize, rgb: &[[f32; 3]]) -> Result<Vec<u8
         .collect();
     let img = image::RgbImage::from_raw(width as u32, height as u32, data)
         .ok_or_else(|| TrainError::Input("image buffer of the wrong size".into()))?;
+    let mut out = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+        .map_err(|e| TrainError::Input(format!("encoding a PNG: {e}")))?;
+    Ok(out)
+}
+
+/// A mask or alpha in [0, 1] as gray PNG bytes (linear: alpha is coverage, not light).
+pub fn gray_png_bytes(width: usize, height: usize, v: &[f32]) -> Result<Vec<u8>, TrainError> {
+    let data: Vec<u8> = v
+        .iter()
+        .map(|&a| {
+            (if a.is_finite() {
+                a.clamp(0.0, 1.0)
+            } else {
+                0.0
+            } * 255.0
+                + 0.5) as u8
+        })
+        .collect();
+    let img = image::GrayImage::from_raw(width as u32, height as u32, data)
+        .ok_or_else(|| TrainError::Input("mask buffer of the wrong size".into()))?;
     let mut out = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
         .map_err(|e| TrainError::Input(format!("encoding a PNG: {e}")))?;

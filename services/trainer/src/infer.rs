@@ -4,7 +4,9 @@
 use std::path::{Path, PathBuf};
 
 use burn::prelude::*;
-use lightfarm_nets::{load_weights, LightBatch, LightInput, RelightNet};
+use lightfarm_nets::{load_weights, Adapter, LightBatch, LightInput, RelightNet, ResNetConfig};
+
+use crate::adapt::checkpoint::{AdapterFile, ADAPTER_FILE, ADAPTER_JSON};
 
 use crate::config::NetConfig;
 use crate::data::input_scale;
@@ -14,6 +16,8 @@ use crate::TrainError;
 
 pub struct Model {
     pub net: RelightNet,
+    /// Set for a model adapted to real photos: f_Ā refines the albedo (or the relit image).
+    pub adapter: Option<Adapter>,
     pub config: NetConfig,
     pub device: Device,
     /// The checkpoint directory the weights came from.
@@ -39,8 +43,8 @@ pub fn resolve_model_dir(path: &Path) -> Result<PathBuf, TrainError> {
     latest_checkpoint(path)?.ok_or_else(missing)
 }
 
-pub fn load_model(path: &Path, device: &str) -> Result<Model, TrainError> {
-    let dir = resolve_model_dir(path)?;
+/// The network in checkpoint directory `dir` (its `net.json` and weights) on `device`.
+pub fn load_net(dir: &Path, device: &Device) -> Result<(RelightNet, NetConfig), TrainError> {
     let net_path = dir.join(NET_FILE);
     let text = std::fs::read_to_string(&net_path).map_err(|e| TrainError::io(&net_path, e))?;
     let config: NetConfig = serde_json::from_str(&text).map_err(|e| {
@@ -49,16 +53,50 @@ pub fn load_model(path: &Path, device: &str) -> Result<Model, TrainError> {
             net_path.display()
         ))
     })?;
-    let device =
-        lightfarm_nets::device::select(device).map_err(|e| TrainError::Config(e.to_string()))?;
     let net = config
         .relight()
-        .init(&device)
+        .init(device)
         .map_err(|e| TrainError::Config(format!("{}: {e}", net_path.display())))?;
     let net =
         load_weights(net, &dir.join(MODEL_FILE)).map_err(|e| TrainError::Input(e.to_string()))?;
+    Ok((net, config))
+}
+
+/// The synthetic-to-real adapter of an adapted checkpoint (`lightfarm adapt`), if `dir` has one.
+fn load_adapter(dir: &Path, device: &Device) -> Result<Option<Adapter>, TrainError> {
+    let json = dir.join(ADAPTER_JSON);
+    if !json.is_file() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&json).map_err(|e| TrainError::io(&json, e))?;
+    let shape: AdapterFile = serde_json::from_str(&text).map_err(|e| {
+        TrainError::Input(format!(
+            "{}: not an adapter description ({e})",
+            json.display()
+        ))
+    })?;
+    let adapter = Adapter::with_config(
+        shape.target,
+        ResNetConfig::new(0, 0)
+            .with_base(shape.base)
+            .with_blocks(shape.blocks),
+        device,
+    )
+    .map_err(|e| TrainError::Input(format!("{}: {e}", json.display())))?;
+    load_weights(adapter, &dir.join(ADAPTER_FILE))
+        .map(Some)
+        .map_err(|e| TrainError::Input(e.to_string()))
+}
+
+pub fn load_model(path: &Path, device: &str) -> Result<Model, TrainError> {
+    let dir = resolve_model_dir(path)?;
+    let device =
+        lightfarm_nets::device::select(device).map_err(|e| TrainError::Config(e.to_string()))?;
+    let (net, config) = load_net(&dir, &device)?;
+    let adapter = load_adapter(&dir, &device)?;
     Ok(Model {
         net,
+        adapter,
         config,
         device,
         dir,
@@ -154,7 +192,14 @@ impl Model {
             d,
         )
         .map_err(|e| TrainError::Input(e.to_string()))?;
-        let out = self.net.forward(input, mask_t, &light);
+        let out = match &self.adapter {
+            None => self.net.forward(input, mask_t, &light),
+            Some(adapter) => {
+                let d = self.net.decompose(input.clone());
+                let refined = adapter.refine(input.clone(), &d);
+                adapter.relight(&self.net, input, mask_t, &light, &refined)
+            }
+        };
         let host = |t: Tensor<4>| -> Result<Vec<[f32; 3]>, TrainError> {
             let v: Vec<f32> = t
                 .into_data()

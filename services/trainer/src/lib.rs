@@ -5,6 +5,7 @@
 //! threads, using [`sample`] to decode EXRs and [`lights`] for prefiltered HDRIs) → [`train`]
 //! (loop, loss log, checkpoints) → [`infer`] (load a model, relight an image) and [`eval`].
 
+pub mod adapt;
 pub mod config;
 pub mod data;
 pub mod eval;
@@ -35,6 +36,8 @@ pub enum TrainError {
     Checkpoint(String),
     #[error("training diverged at step {step} (loss {loss}); lower `lr` or resume from an earlier checkpoint")]
     Diverged { step: u64, loss: f32 },
+    #[error(transparent)]
+    Photo(#[from] lightfarm_photo::PhotoError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,

@@ -17,7 +17,7 @@ use tonic::{Request, Response, Status};
 
 use crate::config::TrainConfig;
 use crate::farm::FarmAddress;
-use crate::image_io::{load_portrait, png_bytes};
+use crate::image_io::{gray_png_bytes, load_portrait, png_bytes};
 use crate::infer::{load_model, normal_colours};
 use crate::lights::{identity_camera, Lighting};
 use crate::train::{latest_checkpoint, read_losses, write_atomic, CHECKPOINTS, LATEST};
@@ -57,6 +57,8 @@ struct Job {
 
 struct Inner {
     cfg: ServiceConfig,
+    /// MODNet for `Relight` of photos that come without a mask, loaded on first use.
+    matting: lightfarm_photo::LazyMatting,
     jobs: Mutex<BTreeMap<String, Job>>,
     queue: Mutex<mpsc::Sender<String>>,
 }
@@ -117,6 +119,7 @@ impl TrainerService {
         }
         let svc = TrainerService(Arc::new(Inner {
             cfg,
+            matting: lightfarm_photo::LazyMatting::builtin(),
             jobs: Mutex::new(jobs),
             queue: Mutex::new(tx),
         }));
@@ -564,7 +567,14 @@ impl TrainerService {
             None => return Err(Status::invalid_argument("give hdri_id or hdri_file")),
         };
         let model = load_model(run, &self.0.cfg.device).map_err(internal)?;
-        let p = load_portrait(&image, mask.as_deref()).map_err(bad)?;
+        let matte = (!r.no_matte).then_some(&self.0.matting);
+        let p = load_portrait(&image, mask.as_deref(), matte).map_err(|e| match e {
+            // The trainer's installation lacks MODNet: not the caller's input.
+            TrainError::Photo(lightfarm_photo::PhotoError::Model { .. }) => {
+                Status::failed_precondition(e.to_string())
+            }
+            e => bad(e),
+        })?;
         let rot = identity_camera(r.rotation_deg, r.flip);
         let (w, h) = (p.width, p.height);
         let out = model
@@ -580,6 +590,8 @@ impl TrainerService {
             albedo_png: png(&out.albedo)?,
             diffuse_png: png(&out.diffuse)?,
             specular_png: png(&out.specular)?,
+            mask_png: gray_png_bytes(w, h, &p.mask).map_err(internal)?,
+            matted: p.matted,
         })
     }
 

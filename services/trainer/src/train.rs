@@ -30,6 +30,11 @@ use crate::farm::{FarmAddress, FarmOptions, FarmSource, StreamState, STREAM_FILE
 use crate::lights::LightCache;
 use crate::TrainError;
 
+/// Held while a run seeds Burn and initialises its networks. Burn's seed is process-wide: two
+/// runs initialising at once (trainer service, tests) would interleave their draws, and a
+/// resumed run would no longer match its first start.
+pub(crate) static SEED_LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 pub const RUN_FILE: &str = "run.json";
 pub const LOSS_FILE: &str = "losses.jsonl";
 pub const CHECKPOINTS: &str = "checkpoints";
@@ -38,7 +43,7 @@ pub const MODEL_FILE: &str = "model.safetensors";
 const CRITIC_FILE: &str = "critic.safetensors";
 const OPTIM_FILE: &str = "optim.bpk";
 const CRITIC_OPTIM_FILE: &str = "critic_optim.bpk";
-const STATE_FILE: &str = "state.json";
+pub(crate) const STATE_FILE: &str = "state.json";
 /// The network shape next to its weights, so a checkpoint directory is a self-contained model.
 pub const NET_FILE: &str = "net.json";
 
@@ -100,10 +105,7 @@ pub fn train(
     let base = lightfarm_nets::device::select(&cfg.device)
         .map_err(|e| TrainError::Config(e.to_string()))?;
     let device = base.autodiff();
-    // Burn's seed is process-wide: two runs initialising at once (trainer service, tests) would
-    // interleave their draws, and a resumed run would no longer match its first start.
-    static INIT: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    let init_guard = INIT.lock().unwrap_or_else(|p| p.into_inner());
+    let init_guard = SEED_LOCK.lock().unwrap_or_else(|p| p.into_inner());
     device.seed(cfg.seed);
 
     let model = cfg
@@ -455,7 +457,7 @@ pub fn read_losses(out: &Path) -> Result<Vec<StepLog>, TrainError> {
         .collect())
 }
 
-fn prune(root: &Path, newest: &str, keep: usize) {
+pub(crate) fn prune(root: &Path, newest: &str, keep: usize) {
     let Ok(entries) = fs::read_dir(root) else {
         return;
     };
@@ -479,7 +481,7 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TrainError> 
     fs::rename(&tmp, path).map_err(|e| TrainError::io(path, e))
 }
 
-fn sync_dir(dir: &Path) {
+pub(crate) fn sync_dir(dir: &Path) {
     if let Ok(entries) = fs::read_dir(dir) {
         for e in entries.flatten() {
             if let Ok(f) = fs::File::open(e.path()) {

@@ -105,6 +105,7 @@ async fn submit_watch_checkpoints_and_relight() {
         lighting: Some(pb::relight_request::Lighting::HdriId(hdri.into())),
         rotation_deg: 45.0,
         flip: false,
+        no_matte: false,
     };
     let park = c
         .relight(relight("rooitou_park"))
@@ -124,10 +125,18 @@ async fn submit_watch_checkpoints_and_relight() {
             &r.albedo_png,
             &r.diffuse_png,
             &r.specular_png,
+            &r.mask_png,
         ] {
             let img = image::load_from_memory(bytes).expect("a PNG");
             assert_eq!((img.width(), img.height()), (24, 16));
         }
+        // The image's alpha is the foreground, not a matte; the mask PNG is that alpha.
+        assert!(!r.matted);
+        let mask = image::load_from_memory(&r.mask_png)
+            .expect("png")
+            .to_luma8();
+        assert_eq!(mask.get_pixel(3, 5)[0], 0);
+        assert_eq!(mask.get_pixel(4, 5)[0], 255);
     }
     // Without a mask the request image's alpha is the mask (0 for x <= 3). The relit image is
     // the network's output times the mask, so those columns are black; the light-ball inset
@@ -192,6 +201,7 @@ async fn submit_watch_checkpoints_and_relight() {
             lighting: Some(pb::relight_request::Lighting::HdriId("rooitou_park".into())),
             rotation_deg: 0.0,
             flip: false,
+            no_matte: false,
         })
         .await
         .unwrap_err();
