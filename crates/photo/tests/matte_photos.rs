@@ -22,6 +22,9 @@ fn photo(name: &str) -> (usize, usize, Vec<[f32; 3]>) {
     (w, h, img.pixels().map(|p| [p[0], p[1], p[2]]).collect())
 }
 
+/// A photo, its face centre and two background points.
+type Case = (&'static str, (usize, usize), [(usize, usize); 2]);
+
 fn matting() -> Matting {
     Matting::builtin().unwrap_or_else(|e| panic!("{e}"))
 }
@@ -45,7 +48,7 @@ fn the_face_is_foreground_and_the_background_corners_are_not() {
     // (photo, face centre, background corners), read off the photos: the astronaut's top
     // corners are flag and studio backdrop, the cameraman's are sky, Grace Hopper's are the
     // studio backdrop.
-    let cases: [(&str, (usize, usize), [(usize, usize); 2]); 3] = [
+    let cases: [Case; 3] = [
         ("astronaut.png", (222, 120), [(16, 16), (495, 16)]),
         ("camera.png", (215, 150), [(16, 16), (495, 16)]),
         ("grace_hopper.jpg", (260, 230), [(16, 16), (495, 16)]),
