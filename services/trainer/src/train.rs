@@ -373,14 +373,7 @@ fn save_checkpoint(
     stream: Option<&StreamState>,
     cfg: &TrainConfig,
 ) -> Result<PathBuf, TrainError> {
-    let root = out.join(CHECKPOINTS);
-    let name = format!("step-{step:09}");
-    let tmp = root.join(format!(".{name}.partial"));
-    let dir = root.join(&name);
-    if tmp.exists() {
-        fs::remove_dir_all(&tmp).map_err(|e| TrainError::io(&tmp, e))?;
-    }
-    fs::create_dir_all(&tmp).map_err(|e| TrainError::io(&tmp, e))?;
+    let tmp = begin_checkpoint(out, step)?;
     let ck = |e: String| TrainError::Checkpoint(e);
     save_weights(model, &tmp.join(MODEL_FILE)).map_err(|e| ck(e.to_string()))?;
     save_weights(critic, &tmp.join(CRITIC_FILE)).map_err(|e| ck(e.to_string()))?;
@@ -398,13 +391,45 @@ fn save_checkpoint(
         let bytes = serde_json::to_vec(stream).map_err(|e| ck(e.to_string()))?;
         write_atomic(&tmp.join(STREAM_FILE), &bytes)?;
     }
+    publish_checkpoint(out, step, cfg.keep_checkpoints)
+}
+
+/// The name of step `step`'s checkpoint under `checkpoints/`.
+fn checkpoint_name(step: u64) -> String {
+    format!("step-{step:09}")
+}
+
+/// An empty temporary directory for step `step`'s checkpoint (a leftover of a killed run is
+/// cleared); [`publish_checkpoint`] makes it the newest.
+pub(crate) fn begin_checkpoint(out: &Path, step: u64) -> Result<PathBuf, TrainError> {
+    let tmp = out
+        .join(CHECKPOINTS)
+        .join(format!(".{}.partial", checkpoint_name(step)));
+    if tmp.exists() {
+        fs::remove_dir_all(&tmp).map_err(|e| TrainError::io(&tmp, e))?;
+    }
+    fs::create_dir_all(&tmp).map_err(|e| TrainError::io(&tmp, e))?;
+    Ok(tmp)
+}
+
+/// Syncs and renames the temporary directory of [`begin_checkpoint`] into place, points
+/// `latest` at it and prunes all but `keep` older checkpoints; returns its path.
+pub(crate) fn publish_checkpoint(
+    out: &Path,
+    step: u64,
+    keep: usize,
+) -> Result<PathBuf, TrainError> {
+    let root = out.join(CHECKPOINTS);
+    let name = checkpoint_name(step);
+    let tmp = root.join(format!(".{name}.partial"));
+    let dir = root.join(&name);
     sync_dir(&tmp);
     if dir.exists() {
         fs::remove_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;
     }
     fs::rename(&tmp, &dir).map_err(|e| TrainError::io(&dir, e))?;
     write_atomic(&root.join(LATEST), name.as_bytes())?;
-    prune(&root, &name, cfg.keep_checkpoints);
+    prune(&root, &name, keep);
     Ok(dir)
 }
 
@@ -432,14 +457,20 @@ fn load_checkpoint(
     Ok((model, critic, optim, critic_optim, state.step))
 }
 
-/// Drops loss lines past `step`: steps after the checkpoint are redone on resume.
-fn truncate_losses(path: &Path, step: u64) -> Result<(), TrainError> {
+/// Drops loss lines past `step` (any JSON line with a `step`): steps after the checkpoint are
+/// redone on resume. Serves training and adaptation logs alike.
+pub(crate) fn truncate_losses(path: &Path, step: u64) -> Result<(), TrainError> {
     let Ok(text) = fs::read_to_string(path) else {
         return Ok(());
     };
     let kept: Vec<&str> = text
         .lines()
-        .filter(|l| serde_json::from_str::<StepLog>(l).is_ok_and(|e| e.step <= step))
+        .filter(|l| {
+            serde_json::from_str::<serde_json::Value>(l)
+                .ok()
+                .and_then(|v| v["step"].as_u64())
+                .is_some_and(|s| s <= step)
+        })
         .collect();
     let mut out = kept.join("\n");
     if !out.is_empty() {
@@ -457,7 +488,7 @@ pub fn read_losses(out: &Path) -> Result<Vec<StepLog>, TrainError> {
         .collect())
 }
 
-pub(crate) fn prune(root: &Path, newest: &str, keep: usize) {
+fn prune(root: &Path, newest: &str, keep: usize) {
     let Ok(entries) = fs::read_dir(root) else {
         return;
     };
@@ -481,7 +512,7 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), TrainError> 
     fs::rename(&tmp, path).map_err(|e| TrainError::io(path, e))
 }
 
-pub(crate) fn sync_dir(dir: &Path) {
+fn sync_dir(dir: &Path) {
     if let Ok(entries) = fs::read_dir(dir) {
         for e in entries.flatten() {
             if let Ok(f) = fs::File::open(e.path()) {

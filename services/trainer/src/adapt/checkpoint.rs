@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 use super::config::AdaptConfig;
 use super::run::{Modules, ADAPT_RUN_FILE};
 use crate::train::{
-    prune, sync_dir, write_atomic, CHECKPOINTS, LATEST, MODEL_FILE, NET_FILE, STATE_FILE,
+    begin_checkpoint, publish_checkpoint, write_atomic, MODEL_FILE, NET_FILE, STATE_FILE,
 };
 use crate::TrainError;
 
@@ -84,14 +84,7 @@ pub(super) fn save(
     shape: &AdapterFile,
     (adapter, critic, optim, critic_optim): Modules<'_>,
 ) -> Result<PathBuf, TrainError> {
-    let root = cfg.out.join(CHECKPOINTS);
-    let name = format!("step-{step:09}");
-    let tmp = root.join(format!(".{name}.partial"));
-    let dir = root.join(&name);
-    if tmp.exists() {
-        fs::remove_dir_all(&tmp).map_err(|e| TrainError::io(&tmp, e))?;
-    }
-    fs::create_dir_all(&tmp).map_err(|e| TrainError::io(&tmp, e))?;
+    let tmp = begin_checkpoint(&cfg.out, step)?;
     let ck = |e: String| TrainError::Checkpoint(e);
     for file in [NET_FILE, MODEL_FILE] {
         link_or_copy(&base_dir.join(file), &tmp.join(file))?;
@@ -108,14 +101,7 @@ pub(super) fn save(
         .map_err(|e| ck(format!("critic optimizer state: {e:?}")))?;
     let state = serde_json::to_vec(&State { step }).map_err(|e| ck(e.to_string()))?;
     write_atomic(&tmp.join(STATE_FILE), &state)?;
-    sync_dir(&tmp);
-    if dir.exists() {
-        fs::remove_dir_all(&dir).map_err(|e| TrainError::io(&dir, e))?;
-    }
-    fs::rename(&tmp, &dir).map_err(|e| TrainError::io(&dir, e))?;
-    write_atomic(&root.join(LATEST), name.as_bytes())?;
-    prune(&root, &name, cfg.keep_checkpoints);
-    Ok(dir)
+    publish_checkpoint(&cfg.out, step, cfg.keep_checkpoints)
 }
 
 pub(super) fn load_step(dir: &Path) -> Result<u64, TrainError> {
@@ -124,25 +110,4 @@ pub(super) fn load_step(dir: &Path) -> Result<u64, TrainError> {
         serde_json::from_slice(&fs::read(&path).map_err(|e| TrainError::io(&path, e))?)
             .map_err(|e| TrainError::Checkpoint(format!("{}: {e}", path.display())))?;
     Ok(state.step)
-}
-
-/// Drops loss lines past `step`: steps after the checkpoint are redone on resume.
-pub(super) fn truncate_log(path: &Path, step: u64) -> Result<(), TrainError> {
-    let Ok(text) = fs::read_to_string(path) else {
-        return Ok(());
-    };
-    let kept: Vec<&str> = text
-        .lines()
-        .filter(|l| {
-            serde_json::from_str::<serde_json::Value>(l)
-                .ok()
-                .and_then(|v| v["step"].as_u64())
-                .is_some_and(|s| s <= step)
-        })
-        .collect();
-    let mut out = kept.join("\n");
-    if !out.is_empty() {
-        out.push('\n');
-    }
-    write_atomic(path, out.as_bytes())
 }

@@ -31,7 +31,7 @@ use super::photos::{PhotoSet, Prepared};
 use crate::data::{input_scale, mix};
 use crate::infer::{load_net, resolve_model_dir};
 use crate::lights::{identity_camera, Lighting};
-use crate::train::{latest_checkpoint, LOSS_FILE, SEED_LOCK};
+use crate::train::{latest_checkpoint, truncate_losses, LOSS_FILE, SEED_LOCK};
 use crate::TrainError;
 
 /// The resolved config, written on the first run and checked on every later one.
@@ -337,7 +337,7 @@ pub fn adapt(
         start = checkpoint::load_step(&dir)?;
         tracing::info!(step = start, checkpoint = %dir.display(), "resuming adaptation");
     }
-    checkpoint::truncate_log(&cfg.out.join(LOSS_FILE), start)?;
+    truncate_losses(&cfg.out.join(LOSS_FILE), start)?;
     observer.on_start(start, cfg.steps);
     let photos = PhotoSet::open(
         &cfg.photos,
