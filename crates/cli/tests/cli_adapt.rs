@@ -6,6 +6,8 @@
 
 mod common;
 
+use common::losses;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -97,14 +99,6 @@ fn write_config(
     )
     .expect("config");
     path
-}
-
-fn losses(run: &Path) -> Vec<serde_json::Value> {
-    std::fs::read_to_string(run.join("losses.jsonl"))
-        .unwrap_or_default()
-        .lines()
-        .filter_map(|l| serde_json::from_str(l).ok())
-        .collect()
 }
 
 #[test]

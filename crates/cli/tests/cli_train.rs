@@ -9,7 +9,7 @@ use std::process::{Command, Output, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use common::{assert_relit_masked, inset, positions, sample_mask};
+use common::{assert_relit_masked, inset, losses, positions, sample_mask};
 
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_lightfarm"));
@@ -60,14 +60,6 @@ fn write_config(dir: &Path, name: &str, steps: u64) -> PathBuf {
     )
     .expect("write config");
     path
-}
-
-fn losses(run: &Path) -> Vec<serde_json::Value> {
-    std::fs::read_to_string(run.join("losses.jsonl"))
-        .unwrap_or_default()
-        .lines()
-        .filter_map(|l| serde_json::from_str(l).ok())
-        .collect()
 }
 
 #[test]

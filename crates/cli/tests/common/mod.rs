@@ -13,6 +13,15 @@ pub fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// The lines of a run directory's `losses.jsonl` (none when it does not exist yet).
+pub fn losses(run: &Path) -> Vec<serde_json::Value> {
+    std::fs::read_to_string(run.join("losses.jsonl"))
+        .unwrap_or_default()
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .collect()
+}
+
 /// Runs the `lightfarm` binary built for these tests.
 pub fn lightfarm(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_lightfarm"))
