@@ -395,5 +395,9 @@ fn train_and_relight(a: &DemoArgs) -> Result<()> {
         device: a.train_device.clone(),
         assets: None,
         lpips: lpips.into(),
+        real: None,
+        lightings: 4,
+        size: 256,
+        seed: 0,
     })
 }

@@ -9,6 +9,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use lightfarm_trainer::config::TrainConfig;
 use lightfarm_trainer::eval::{evaluate, table};
+use lightfarm_trainer::eval_real::{evaluate_real, real_table, RealEvalOptions};
 use lightfarm_trainer::image_io::{gray_png_bytes, load_portrait, write_png};
 use lightfarm_trainer::infer::{load_model, normal_colours, resolve_model_dir};
 use lightfarm_trainer::lights::{camera_to_env, identity_camera, Lighting};
@@ -354,6 +355,72 @@ pub struct EvalArgs {
     /// plus the lpips package's `lin0..4`; README: "LPIPS and the perceptual loss"), or "none".
     #[arg(long, default_value = "builtin")]
     pub lpips: String,
+    /// Evaluate on a folder of real portraits (JPEG/PNG) instead of a dataset: identity kept
+    /// (dlib), FD-VGG/KID realism and OLAT consistency, the metrics of the paper's Table 4.
+    #[arg(long, conflicts_with_all = ["dataset", "split"])]
+    pub real: Option<PathBuf>,
+    /// With --real: HDRI relightings per photo.
+    #[arg(long, default_value_t = 4, requires = "real")]
+    pub lightings: usize,
+    /// With --real: side of the square photos are prepared at.
+    #[arg(long, default_value_t = 256, requires = "real")]
+    pub size: usize,
+    /// With --real: seed of the lightings drawn per photo.
+    #[arg(long, default_value_t = 0, requires = "real")]
+    pub seed: u64,
+}
+
+/// Where prepared photos are kept between evaluations.
+fn photo_cache() -> PathBuf {
+    std::env::var_os("LIGHTFARM_CACHE")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache/lightfarm")))
+        .unwrap_or_else(std::env::temp_dir)
+        .join("photo-cache")
+}
+
+fn eval_real(a: &EvalArgs, photos: &Path) -> Result<()> {
+    if !(1..=64).contains(&a.lightings) {
+        bail!("--lightings {} must be in 1..=64", a.lightings);
+    }
+    if !(32..=2048).contains(&a.size) {
+        bail!("--size {} must be in 32..=2048 pixels", a.size);
+    }
+    let vgg = match lpips_weights(&a.lpips)? {
+        Some(p) => p,
+        None => bail!("--real needs VGG16 weights for FD-VGG and KID: drop --lpips none"),
+    };
+    let run = run_config_of(&a.model[0]);
+    let assets = a.assets.clone().or_else(|| run.and_then(|r| r.assets));
+    let catalog = load_catalog(&assets)?;
+    let bar = ProgressBar::new(0).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} photos  eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let opts = RealEvalOptions {
+        photos: photos.to_owned(),
+        cache: photo_cache(),
+        size: a.size,
+        lightings: a.lightings,
+        seed: a.seed,
+        vgg,
+        device: a.device.clone(),
+    };
+    let (rows, skipped) = evaluate_real(&a.model, &opts, catalog, |i, n| {
+        bar.set_length(n as u64);
+        bar.set_position(i as u64);
+    })?;
+    bar.finish_and_clear();
+    print!("{}", real_table(&rows));
+    if skipped > 0 {
+        println!("{skipped} photo(s) skipped (named in the log with the reason)");
+    }
+    if let Some(path) = &a.json {
+        crate::render_cmd::ensure_parent(path, "--json")?;
+        std::fs::write(path, serde_json::to_string_pretty(&rows)?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(())
 }
 
 /// The run a model came from (run.json two levels above its checkpoint), for its dataset.
@@ -364,6 +431,9 @@ fn run_config_of(model: &Path) -> Option<TrainConfig> {
 }
 
 pub fn eval(a: EvalArgs) -> Result<()> {
+    if let Some(photos) = &a.real {
+        return eval_real(&a, photos);
+    }
     let run = run_config_of(&a.model[0]);
     let dataset = match (&a.dataset, &run) {
         (Some(d), _) => d.clone(),

@@ -26,9 +26,8 @@ pub enum AdaptTarget {
     Relit,
 }
 
-/// The weights of section 4.3's adaptation loss. The paper's are (10, 10, 10, 1, 1); the
-/// identity term defaults to 0 here because it needs a face-recognition network (dlib's
-/// ResNet) that lightfarm does not run yet.
+/// The weights of section 4.3's adaptation loss, the paper's (10, 10, 10, 1, 1). The identity
+/// term needs a face-recognition network; the trainer runs dlib's (crate lightfarm-face).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct AdaptWeights {
@@ -45,7 +44,7 @@ impl Default for AdaptWeights {
             olat: 10.0,
             relative: 10.0,
             similarity: 10.0,
-            identity: 0.0,
+            identity: 1.0,
             gan: 1.0,
         }
     }

@@ -9,6 +9,7 @@ pub mod adapt;
 pub mod config;
 pub mod data;
 pub mod eval;
+pub mod eval_real;
 pub mod farm;
 pub mod image_io;
 pub mod infer;

@@ -151,7 +151,7 @@ impl AdaptConfig {
 
     pub fn validate(&self) -> Result<(), String> {
         let w = &self.weights;
-        let checks: [(bool, String); 11] = [
+        let checks: [(bool, String); 10] = [
             (
                 (2..=256).contains(&self.olat_lights),
                 format!("olat_lights = {} must be in 2..=256 (the paper's stage has 168)", self.olat_lights),
@@ -170,14 +170,8 @@ impl AdaptConfig {
                 "weights must be finite and non-negative".into(),
             ),
             (
-                w.olat + w.relative + w.similarity + w.gan > 0.0,
+                w.olat + w.relative + w.similarity + w.identity + w.gan > 0.0,
                 "every loss weight is 0: nothing would train".into(),
-            ),
-            // The identity loss needs a face-recognition network (dlib's ResNet, converted to
-            // run in Burn), which lightfarm does not have yet.
-            (
-                w.identity == 0.0,
-                format!("weights.identity = {}: the identity loss is not available yet (it needs the dlib face-recognition network); set it to 0", w.identity),
             ),
             (
                 !(w.similarity > 0.0 && self.vgg_weights.as_deref().and_then(Path::to_str) == Some(VGG_NONE)),

@@ -2,14 +2,18 @@
 //! on first use — decoded, matted with MODNet (unless it has alpha), cropped square around the
 //! subject and resized — and kept in the run directory as a small RGBA PNG, so later epochs
 //! and resumed runs read that. A photo that cannot be used is logged by name once, remembered
-//! (`.skip` file with the reason) and never drawn again.
+//! (`.skip` file with the reason) and never drawn again. When faces are asked for (the
+//! identity loss, the real-photo metrics), the prepared photo's face is found and aligned with
+//! dlib's detector and 5-point landmarks (`.face` file); a photo without a detectable face is
+//! skipped the same way (`.noface` file, so a later run that needs no face still uses it).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use image::imageops::{resize, FilterType};
 use image::{ImageBuffer, Rgba, RgbaImage};
+use lightfarm_face::{Alignment, Detection, Image, LazyFaces};
 use lightfarm_photo::LazyMatting;
 
 use crate::image_io::srgb_decode;
@@ -23,6 +27,8 @@ const MIN_COVERAGE: f32 = 0.02;
 pub struct Prepared {
     pub rgb: Vec<[f32; 3]>,
     pub mask: Vec<f32>,
+    /// The face, in this image's pixels, when the set was opened with face models.
+    pub face: Option<Alignment>,
 }
 
 pub struct PhotoSet {
@@ -31,6 +37,7 @@ pub struct PhotoSet {
     cache: PathBuf,
     size: usize,
     matting: LazyMatting,
+    faces: Option<Arc<LazyFaces>>,
     /// Index → why it cannot be used.
     skipped: Mutex<HashMap<usize, String>>,
 }
@@ -56,12 +63,14 @@ fn scan(dir: &Path, out: &mut Vec<PathBuf>) -> Result<(), TrainError> {
 
 impl PhotoSet {
     /// The JPEG and PNG files under `dir` (recursively, in path order); prepared photos go to
-    /// `cache`. A folder without any is an error naming it.
+    /// `cache`. A folder without any is an error naming it. With `faces`, every photo must
+    /// show a detectable face.
     pub fn open(
         dir: &Path,
         cache: &Path,
         size: usize,
         matting: LazyMatting,
+        faces: Option<Arc<LazyFaces>>,
     ) -> Result<PhotoSet, TrainError> {
         if !dir.is_dir() {
             return Err(TrainError::Config(format!(
@@ -85,6 +94,7 @@ impl PhotoSet {
             cache: cache.to_owned(),
             size,
             matting,
+            faces,
             skipped: Mutex::new(HashMap::new()),
         })
     }
@@ -146,27 +156,92 @@ impl PhotoSet {
             self.skip(i, reason);
             return Ok(None);
         }
-        if let Ok(img) = image::open(&png) {
-            return Ok(Some(from_rgba(&img.to_rgba8())));
-        }
-        match self.prepare(i)? {
-            Ok(img) => {
-                let tmp = png.with_extension("png.tmp");
-                img.save_with_format(&tmp, image::ImageFormat::Png)
-                    .map_err(|e| TrainError::Input(format!("{}: {e}", tmp.display())))?;
-                std::fs::rename(&tmp, &png).map_err(|e| TrainError::io(&png, e))?;
-                Ok(Some(from_rgba(&img)))
+        let face_file = self.cache.join(format!("{key}.face"));
+        let none_file = self.cache.join(format!("{key}.noface"));
+        // What the cache knows of the face: Some(None) = no face, None = not looked for.
+        let cached_face = || -> Option<Option<Alignment>> {
+            if none_file.exists() {
+                return Some(None);
             }
-            Err(reason) => {
-                std::fs::write(&skip_file, &reason).map_err(|e| TrainError::io(&skip_file, e))?;
-                self.skip(i, reason);
-                Ok(None)
+            let text = std::fs::read_to_string(&face_file).ok()?;
+            parse_face(&text).map(Some)
+        };
+        let cached = image::open(&png).ok().and_then(|img| {
+            let face = match &self.faces {
+                None => None,
+                Some(_) => Some(cached_face()?),
+            };
+            Some((img.to_rgba8(), face))
+        });
+        let (img, face) = match cached {
+            Some(hit) => hit,
+            None => match self.prepare(i)? {
+                Ok((img, face)) => {
+                    let tmp = png.with_extension("png.tmp");
+                    img.save_with_format(&tmp, image::ImageFormat::Png)
+                        .map_err(|e| TrainError::Input(format!("{}: {e}", tmp.display())))?;
+                    std::fs::rename(&tmp, &png).map_err(|e| TrainError::io(&png, e))?;
+                    match &face {
+                        Some(Some(a)) => std::fs::write(&face_file, format_face(a))
+                            .map_err(|e| TrainError::io(&face_file, e))?,
+                        Some(None) => std::fs::write(&none_file, "")
+                            .map_err(|e| TrainError::io(&none_file, e))?,
+                        None => {}
+                    }
+                    (img, face)
+                }
+                Err(reason) => {
+                    std::fs::write(&skip_file, &reason)
+                        .map_err(|e| TrainError::io(&skip_file, e))?;
+                    self.skip(i, reason);
+                    return Ok(None);
+                }
+            },
+        };
+        let mut prepared = from_rgba(&img);
+        match face {
+            Some(None) => {
+                self.skip(i, "no face found (dlib's CNN face detector)".into());
+                return Ok(None);
             }
+            Some(Some(a)) => prepared.face = Some(a),
+            None => {}
         }
+        Ok(Some(prepared))
     }
 
-    /// The prepared 8-bit RGBA image, or why the photo cannot be used.
-    fn prepare(&self, i: usize) -> Result<Result<RgbaImage, String>, TrainError> {
+    /// The face of the whole photo, found by dlib's detector and landmarks, mapped into the
+    /// square crop (x0, y0, side) resized to the output size; Some(None) when there is none,
+    /// None when no faces were asked for.
+    fn find_face(
+        &self,
+        rgba: &ImageBuffer<Rgba<f32>, Vec<f32>>,
+        (x0, y0, side): (usize, usize, usize),
+    ) -> Result<Option<Option<Alignment>>, TrainError> {
+        let Some(faces) = &self.faces else {
+            return Ok(None);
+        };
+        let aligner = faces
+            .get()
+            .map_err(|e| TrainError::Config(format!("face models: {e}")))?;
+        let rgb: Vec<u8> = rgba
+            .pixels()
+            .flat_map(|p| [p[0], p[1], p[2]].map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8))
+            .collect();
+        let (w, h) = (rgba.width() as usize, rgba.height() as usize);
+        let image = Image::new(&rgb, w, h).map_err(|e| TrainError::Input(e.to_string()))?;
+        Ok(Some(aligner.align(&image).map(|a| {
+            a.in_crop(x0 as f32, y0 as f32, side as f32, self.size as f32)
+        })))
+    }
+
+    /// The prepared 8-bit RGBA image and its face (see [`Self::find_face`]), or why the photo
+    /// cannot be used.
+    #[allow(clippy::type_complexity)]
+    fn prepare(
+        &self,
+        i: usize,
+    ) -> Result<Result<(RgbaImage, Option<Option<Alignment>>), String>, TrainError> {
         let path = &self.files[i];
         let bytes = match std::fs::read(path) {
             Ok(b) => b,
@@ -204,10 +279,14 @@ impl PhotoSet {
             });
         let s = self.size as u32;
         let small = resize(&cropped, s, s, FilterType::Triangle);
-        Ok(Ok(RgbaImage::from_fn(s, s, |x, y| {
-            let p = small.get_pixel(x, y);
-            Rgba(p.0.map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8))
-        })))
+        let face = self.find_face(&rgba, (x0, y0, side))?;
+        Ok(Ok((
+            RgbaImage::from_fn(s, s, |x, y| {
+                let p = small.get_pixel(x, y);
+                Rgba(p.0.map(|v| (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8))
+            }),
+            face,
+        )))
     }
 }
 
@@ -244,7 +323,41 @@ fn from_rgba(img: &RgbaImage) -> Prepared {
             .map(|p| [p[0], p[1], p[2]].map(|v| srgb_decode(f32::from(v) / 255.0)))
             .collect(),
         mask: img.pixels().map(|p| f32::from(p[3]) / 255.0).collect(),
+        face: None,
     }
+}
+
+/// A face as one line of numbers: box (left, top, width, height, score), then the landmarks.
+fn format_face(a: &Alignment) -> String {
+    let f = &a.face;
+    let mut v = vec![f.left, f.top, f.width, f.height, f.score];
+    v.extend(a.landmarks.iter().flatten());
+    v.iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn parse_face(text: &str) -> Option<Alignment> {
+    let v: Vec<f32> = text
+        .split_whitespace()
+        .map(str::parse)
+        .collect::<Result<_, _>>()
+        .ok()?;
+    if v.len() != 15 || v.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let face = Detection {
+        left: v[0],
+        top: v[1],
+        width: v[2],
+        height: v[3],
+        score: v[4],
+    };
+    Some(Alignment::new(
+        face,
+        v[5..].chunks_exact(2).map(|p| [p[0], p[1]]).collect(),
+    ))
 }
 
 #[cfg(test)]

@@ -15,6 +15,7 @@ use std::time::Instant;
 
 use burn::optim::{GradientsParams, ModuleOptimizer};
 use burn::prelude::*;
+use lightfarm_face::{builtin_face_net, identity_loss, Alignment, FaceNet, LazyFaces};
 use lightfarm_light::{OlatBasis, PrefilteredEnv, OLAT_DISC_DEG};
 use lightfarm_nets::adapt::{olat_consistency, relative_consistency};
 use lightfarm_nets::{
@@ -49,6 +50,8 @@ pub struct AdaptLog {
     pub relative: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub similarity: Option<f32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub identity: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gan: Option<f32>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -273,7 +276,7 @@ pub fn adapt(
         .map_err(|e| TrainError::Config(format!("base = {}: {e}", cfg.base.display())))?;
     let plain = lightfarm_nets::device::select(&cfg.device)
         .map_err(|e| TrainError::Config(e.to_string()))?;
-    let device = plain.autodiff();
+    let device = plain.clone().autodiff();
     let (base, net_cfg) = load_net(&base_dir, &device)?;
     let base: RelightNet = base.no_grad();
     let multiple = net_cfg.relight().size_multiple().max(RESNET_SIZE_MULTIPLE);
@@ -320,6 +323,19 @@ pub fn adapt(
                 "vgg_weights: {e}; or set weights.similarity = 0 and vgg_weights = \"none\""
             ))
         })?;
+    // The identity loss needs each photo's face: photos without one are skipped then.
+    let face_net = (cfg.weights.identity > 0.0)
+        .then(|| FaceNet::load(&builtin_face_net(), &device))
+        .transpose()
+        .map_err(|e| {
+            TrainError::Config(format!(
+                "weights.identity = {}: {e}; or set weights.identity = 0",
+                cfg.weights.identity
+            ))
+        })?;
+    let faces = face_net
+        .is_some()
+        .then(|| Arc::new(LazyFaces::builtin(plain.clone())));
     let mut optim = lightfarm_nets::optimizer();
     let mut critic_optim = lightfarm_nets::optimizer();
     let mut start = 0;
@@ -344,6 +360,7 @@ pub fn adapt(
         &cfg.out.join(PHOTO_CACHE),
         cfg.size,
         LazyMatting::builtin(),
+        faces,
     )?;
     let mut lights = Lights::new(catalog, &cfg.hdris, cfg.olat_lights)?;
     let mut log = fs::OpenOptions::new()
@@ -407,6 +424,10 @@ pub fn adapt(
                 perceptual_loss(v, rbar_i.clone(), r(&l.hdri[0]).detach(), mask.clone())
             }
         });
+        let identity = face_net.as_ref().map(|net| {
+            let faces: Vec<Alignment> = batch.iter().filter_map(|p| p.face.clone()).collect();
+            identity_loss(net, input.clone(), rbar_i.clone(), mask.clone(), &faces)
+        });
         let gan = (w.gan > 0.0).then(|| {
             critic
                 .forward(rbar_i.clone(), mask.clone())
@@ -418,6 +439,7 @@ pub fn adapt(
             (&olat, w.olat),
             (&relative, w.relative),
             (&similarity, w.similarity),
+            (&identity, w.identity),
             (&gan, w.gan),
         ] {
             if let Some(t) = term {
@@ -450,6 +472,7 @@ pub fn adapt(
             olat: olat.as_ref().map(scalar),
             relative: relative.as_ref().map(scalar),
             similarity: similarity.as_ref().map(scalar),
+            identity: identity.as_ref().map(scalar),
             gan: gan.as_ref().map(scalar),
             critic: critic_value,
             photos_per_second: batch.len() as f32 / started.elapsed().as_secs_f32().max(1e-9),
