@@ -206,6 +206,54 @@ fn adaptation_trains_on_photos_resumes_and_relights() {
     let img = image::open(&out).expect("relit png");
     assert_eq!((img.width(), img.height()), (128, 128));
 
+    // The ablation "finetune only": no f_Ā, the base networks themselves train; its
+    // checkpoint is a plain model with weights of its own, and it relights.
+    let cfg = write_config(
+        tmp.path(),
+        "tuned",
+        &base,
+        &photos,
+        32,
+        "[weights]\ngan = 0\nidentity = 0\n",
+    );
+    let text = std::fs::read_to_string(&cfg).expect("config");
+    std::fs::write(&cfg, format!("finetune = true\n{text}")).expect("config");
+    ok(&run(&[
+        "adapt",
+        cfg.to_str().expect("utf8"),
+        "--steps",
+        "3",
+    ]));
+    let log = losses(&tmp.path().join("tuned"));
+    assert_eq!(log.len(), 3);
+    assert!(log
+        .iter()
+        .all(|l| l["total"].as_f64().is_some_and(f64::is_finite)));
+    let checkpoint = |run: &Path| {
+        let dir = run.join("checkpoints");
+        let name = std::fs::read_to_string(dir.join("latest")).expect("latest");
+        dir.join(name.trim())
+    };
+    let tuned = checkpoint(&tmp.path().join("tuned"));
+    assert!(!tuned.join("adapter.json").exists());
+    let weights = |dir: &Path| std::fs::read(dir.join("model.safetensors")).expect("weights");
+    assert_ne!(
+        weights(&tuned),
+        weights(&checkpoint(&base)),
+        "the networks did not train"
+    );
+    ok(&run(&[
+        "relight",
+        "--model",
+        tmp.path().join("tuned").to_str().expect("utf8"),
+        "--image",
+        photos.join("astronaut.png").to_str().expect("utf8"),
+        "--hdri",
+        "venice_sunset",
+        "--out",
+        tmp.path().join("tuned.png").to_str().expect("utf8"),
+    ]));
+
     // The real-photo metrics (Table 4) of the base and the adapted model.
     let json = tmp.path().join("real.json");
     let eval = |photos: &Path| {

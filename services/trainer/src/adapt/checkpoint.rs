@@ -3,7 +3,8 @@
 //! links are impossible), plus `adapter.safetensors` and `adapter.json` (f_Ā's shape and
 //! target), the critic and both Adam states, and `state.json`. Written to a temporary
 //! directory and renamed, `latest` replaced by rename: `kill -9` at any moment leaves the
-//! previous checkpoint intact.
+//! previous checkpoint intact. The "finetune only" ablation has no adapter: its checkpoint holds
+//! the fine-tuned networks as `model.safetensors`, a plain model.
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -12,7 +13,7 @@ use lightfarm_nets::{save_weights, AdaptTarget};
 use serde::{Deserialize, Serialize};
 
 use super::config::AdaptConfig;
-use super::run::{Modules, ADAPT_RUN_FILE};
+use super::run::{Modules, Trainee, ADAPT_RUN_FILE};
 use crate::train::{
     begin_checkpoint, publish_checkpoint, write_atomic, MODEL_FILE, NET_FILE, STATE_FILE,
 };
@@ -52,6 +53,7 @@ pub(super) fn check_run_file(cfg: &AdaptConfig) -> Result<(), TrainError> {
         })?;
         if old.base != cfg.base
             || old.target != cfg.target
+            || old.finetune != cfg.finetune
             || old.adapter != cfg.adapter
             || old.seed != cfg.seed
             || old.batch != cfg.batch
@@ -82,16 +84,22 @@ pub(super) fn save(
     step: u64,
     base_dir: &Path,
     shape: &AdapterFile,
-    (adapter, critic, optim, critic_optim): Modules<'_>,
+    (trainee, critic, optim, critic_optim): Modules<'_>,
 ) -> Result<PathBuf, TrainError> {
     let tmp = begin_checkpoint(&cfg.out, step)?;
     let ck = |e: String| TrainError::Checkpoint(e);
-    for file in [NET_FILE, MODEL_FILE] {
-        link_or_copy(&base_dir.join(file), &tmp.join(file))?;
+    link_or_copy(&base_dir.join(NET_FILE), &tmp.join(NET_FILE))?;
+    match trainee {
+        Trainee::Adapter(adapter) => {
+            link_or_copy(&base_dir.join(MODEL_FILE), &tmp.join(MODEL_FILE))?;
+            save_weights(adapter, &tmp.join(ADAPTER_FILE)).map_err(|e| ck(e.to_string()))?;
+            let json = serde_json::to_vec_pretty(shape).map_err(|e| ck(e.to_string()))?;
+            write_atomic(&tmp.join(ADAPTER_JSON), &json)?;
+        }
+        Trainee::Finetune(net) => {
+            save_weights(net, &tmp.join(MODEL_FILE)).map_err(|e| ck(e.to_string()))?;
+        }
     }
-    save_weights(adapter, &tmp.join(ADAPTER_FILE)).map_err(|e| ck(e.to_string()))?;
-    let json = serde_json::to_vec_pretty(shape).map_err(|e| ck(e.to_string()))?;
-    write_atomic(&tmp.join(ADAPTER_JSON), &json)?;
     save_weights(critic, &tmp.join(CRITIC_FILE)).map_err(|e| ck(e.to_string()))?;
     optim
         .save(tmp.join(OPTIM_FILE))

@@ -48,6 +48,11 @@ pub struct AdaptConfig {
     /// syn2real": a residual on the relit image).
     #[serde(default = "default_target")]
     pub target: AdaptTarget,
+    /// The ablation "finetune only" (Table 4): no f_Ā; every network of the base model trains
+    /// on the photos with the same losses (relative consistency still against the frozen
+    /// original). Checkpoints are then plain models.
+    #[serde(default)]
+    pub finetune: bool,
     /// The loss weights; an ablation sets one to 0 ("w/o relative consistency": `relative`,
     /// "w/o OLAT consistency": `olat`).
     #[serde(default)]
@@ -151,7 +156,11 @@ impl AdaptConfig {
 
     pub fn validate(&self) -> Result<(), String> {
         let w = &self.weights;
-        let checks: [(bool, String); 10] = [
+        let checks: [(bool, String); 11] = [
+            (
+                !(self.finetune && self.target != AdaptTarget::Albedo),
+                "finetune = true trains the base networks themselves; `target` is where f_Ā's residual goes, so leave it at \"albedo\"".into(),
+            ),
             (
                 (2..=256).contains(&self.olat_lights),
                 format!("olat_lights = {} must be in 2..=256 (the paper's stage has 168)", self.olat_lights),

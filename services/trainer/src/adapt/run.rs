@@ -32,7 +32,7 @@ use super::photos::{PhotoSet, Prepared};
 use crate::data::{input_scale, mix};
 use crate::infer::{load_net, resolve_model_dir};
 use crate::lights::{identity_camera, Lighting};
-use crate::train::{latest_checkpoint, truncate_losses, LOSS_FILE, SEED_LOCK};
+use crate::train::{latest_checkpoint, truncate_losses, LOSS_FILE, MODEL_FILE, SEED_LOCK};
 use crate::TrainError;
 
 /// The resolved config, written on the first run and checked on every later one.
@@ -306,7 +306,12 @@ pub fn adapt(
         &device,
     )
     .map_err(|e| TrainError::Config(format!("adapter: {e}")))?;
-    let mut adapter = stable_param_ids(adapter, 11);
+    let mut trainee = if cfg.finetune {
+        let (tuned, _) = load_net(&base_dir, &device)?;
+        Trainee::Finetune(stable_param_ids(tuned, 13))
+    } else {
+        Trainee::Adapter(stable_param_ids(adapter, 11))
+    };
     let mut critic = stable_param_ids(
         PatchGanConfig::new()
             .with_width(cfg.critic_width)
@@ -341,7 +346,14 @@ pub fn adapt(
     let mut start = 0;
     if let Some(dir) = latest_checkpoint(&cfg.out)? {
         let ck = |e: String| TrainError::Checkpoint(format!("{}: {e}", dir.display()));
-        adapter = load_weights(adapter, &dir.join(ADAPTER_FILE)).map_err(|e| ck(e.to_string()))?;
+        trainee = match trainee {
+            Trainee::Adapter(a) => Trainee::Adapter(
+                load_weights(a, &dir.join(ADAPTER_FILE)).map_err(|e| ck(e.to_string()))?,
+            ),
+            Trainee::Finetune(n) => Trainee::Finetune(
+                load_weights(n, &dir.join(MODEL_FILE)).map_err(|e| ck(e.to_string()))?,
+            ),
+        };
         critic = load_weights(critic, &dir.join(checkpoint::CRITIC_FILE))
             .map_err(|e| ck(e.to_string()))?;
         optim = optim
@@ -379,11 +391,16 @@ pub fn adapt(
         let l = lights.for_step(cfg.seed, step, cfg.batch, &device)?;
 
         let d = base.decompose(input.clone());
-        let refined = adapter.refine(input.clone(), &d);
-        let rbar = |light: &LightBatch| {
-            adapter
-                .relight(&base, input.clone(), mask.clone(), light, &refined)
-                .relit
+        let refined = match &trainee {
+            Trainee::Adapter(a) => a.refine(input.clone(), &d),
+            Trainee::Finetune(n) => n.decompose(input.clone()),
+        };
+        let rbar = |light: &LightBatch| match &trainee {
+            Trainee::Adapter(a) => {
+                a.relight(&base, input.clone(), mask.clone(), light, &refined)
+                    .relit
+            }
+            Trainee::Finetune(n) => n.render(input.clone(), mask.clone(), light, &refined).relit,
         };
         let r = |light: &LightBatch| base.render(input.clone(), mask.clone(), light, &d).relit;
         let rbar_i = rbar(&l.hdri[0]);
@@ -454,8 +471,17 @@ pub fn adapt(
                 loss: total_value,
             });
         }
-        let grads = GradientsParams::from_grads(total.backward(), &adapter);
-        adapter = optim.step(cfg.lr, adapter, grads);
+        let grads = total.backward();
+        trainee = match trainee {
+            Trainee::Adapter(a) => {
+                let grads = GradientsParams::from_grads(grads, &a);
+                Trainee::Adapter(optim.step(cfg.lr, a, grads))
+            }
+            Trainee::Finetune(n) => {
+                let grads = GradientsParams::from_grads(grads, &n);
+                Trainee::Finetune(optim.step(cfg.lr, n, grads))
+            }
+        };
         let critic_value = if w.gan > 0.0 {
             let c = critic_loss(&critic, input.clone(), rbar_i.detach(), mask.clone());
             let value = scalar(&c);
@@ -490,7 +516,7 @@ pub fn adapt(
                 step,
                 &base_dir,
                 &shape,
-                (&adapter, &critic, &optim, &critic_optim),
+                (&trainee, &critic, &optim, &critic_optim),
             )?;
         }
         if cancelled {
@@ -507,9 +533,18 @@ pub fn adapt(
     })
 }
 
+/// What adaptation trains: f_Ā on the frozen base model (the paper), or the base model's own
+/// networks (the ablation "finetune only").
+// One value per run, moved through each optimizer step: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
+pub(super) enum Trainee {
+    Adapter(Adapter),
+    Finetune(RelightNet),
+}
+
 /// What a checkpoint saves besides the base model.
 pub(super) type Modules<'a> = (
-    &'a Adapter,
+    &'a Trainee,
     &'a PatchGan,
     &'a ModuleOptimizer,
     &'a ModuleOptimizer,
