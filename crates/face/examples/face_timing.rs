@@ -25,7 +25,9 @@ fn main() {
     let net = FaceNet::load(&builtin_face_net(), &device).unwrap_or_else(|e| panic!("{e}"));
     println!("photo                 size       detect ms  landmarks ms  chip+descriptor ms");
     for name in ["astronaut.png", "grace_hopper.jpg", "camera.png"] {
-        let path = lightfarm_scene::catalog::builtin_assets_dir().join("photos").join(name);
+        let path = lightfarm_scene::catalog::builtin_assets_dir()
+            .join("photos")
+            .join(name);
         let img = image::open(&path)
             .unwrap_or_else(|e| panic!("{}: {e}; run ./scripts/fetch-models.sh", path.display()))
             .to_rgb8();
