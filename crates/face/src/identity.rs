@@ -45,3 +45,12 @@ pub fn descriptor_distance(a: Tensor<2>, b: Tensor<2>) -> Tensor<1> {
     let [n, _] = a.dims();
     (a - b).powi_scalar(2).sum_dim(1).sqrt().reshape([n])
 }
+
+/// Cosine similarity of the descriptors of each pair ([B, 128] each → [B]), the paper's
+/// identity score (↑).
+pub fn descriptor_similarity(a: Tensor<2>, b: Tensor<2>) -> Tensor<1> {
+    let [n, _] = a.dims();
+    let dot = (a.clone() * b.clone()).sum_dim(1);
+    let norms = a.powi_scalar(2).sum_dim(1).sqrt() * b.powi_scalar(2).sum_dim(1).sqrt();
+    (dot / norms.clamp_min(1e-12)).reshape([n])
+}

@@ -13,7 +13,9 @@ mod recognition;
 
 pub use align::{face_chips, Alignment, FaceAligner, LazyFaces, CHIP_PADDING};
 pub use detect::{builtin_detector, Detection, FaceDetector, DETECTOR_FILE};
-pub use identity::{descriptor_distance, descriptors, identity_display, identity_loss};
+pub use identity::{
+    descriptor_distance, descriptor_similarity, descriptors, identity_display, identity_loss,
+};
 pub use landmarks::{builtin_landmarks, ShapePredictor, LANDMARKS_FILE};
 pub use recognition::{
     builtin_face_net, FaceNet, CHIP_SIZE, FACE_NET_FILE, FACE_NET_FIX, SAME_PERSON_DISTANCE,

@@ -4,19 +4,13 @@
 //! no face, and aligned chips give dlib's identity separation. Broken files are errors naming
 //! them.
 
+mod common;
+
 use burn::prelude::*;
+use common::{distance, photo, tensor};
 use lightfarm_face::{
     builtin_face_net, face_chips, Alignment, FaceAligner, FaceNet, Image, SAME_PERSON_DISTANCE,
 };
-
-fn photo(name: &str) -> image::RgbImage {
-    let path = lightfarm_scene::catalog::builtin_assets_dir()
-        .join("photos")
-        .join(name);
-    image::open(&path)
-        .unwrap_or_else(|e| panic!("{}: {e}; run ./scripts/fetch-models.sh", path.display()))
-        .to_rgb8()
-}
 
 fn view(img: &image::RgbImage) -> Image<'_> {
     Image::new(img.as_raw(), img.width() as usize, img.height() as usize).unwrap()
@@ -25,26 +19,6 @@ fn view(img: &image::RgbImage) -> Image<'_> {
 fn aligner() -> FaceAligner {
     FaceAligner::builtin(&Device::default())
         .unwrap_or_else(|e| panic!("{e} (run ./scripts/fetch-models.sh)"))
-}
-
-/// [1, 3, H, W] in 0..255.
-fn tensor(img: &image::RgbImage) -> Tensor<4> {
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    let mut planar = vec![0f32; 3 * w * h];
-    for (i, p) in img.pixels().enumerate() {
-        for c in 0..3 {
-            planar[c * w * h + i] = f32::from(p[c]);
-        }
-    }
-    Tensor::<1>::from_floats(planar.as_slice(), &Device::default()).reshape([1, 3, h, w])
-}
-
-fn distance(a: &Tensor<2>, b: &Tensor<2>) -> f32 {
-    (a.clone() - b.clone())
-        .powi_scalar(2)
-        .sum()
-        .sqrt()
-        .into_scalar::<f32>()
 }
 
 /// The hand-located centre of each portrait's face (between the eyes and the mouth).

@@ -4,45 +4,28 @@
 
 use std::path::{Path, PathBuf};
 
-use burn::prelude::*;
-use lightfarm_face::{builtin_face_net, FaceNet, CHIP_SIZE, SAME_PERSON_DISTANCE};
+mod common;
 
-fn photo(name: &str) -> image::RgbImage {
-    let path = lightfarm_scene::catalog::builtin_assets_dir()
-        .join("photos")
-        .join(name);
-    image::open(&path)
-        .unwrap_or_else(|e| panic!("{}: {e}; run ./scripts/fetch-models.sh", path.display()))
-        .to_rgb8()
-}
+use burn::prelude::*;
+use common::{distance, photo, tensor};
+use lightfarm_face::{builtin_face_net, FaceNet, CHIP_SIZE, SAME_PERSON_DISTANCE};
 
 /// The square `(x, y, side)` of `img` resampled to a 150² chip, as [1, 3, 150, 150] in 0..255.
 fn chip(img: &image::RgbImage, (x, y, side): (u32, u32, u32)) -> Tensor<4> {
     let crop = image::imageops::crop_imm(img, x, y, side, side).to_image();
     let n = CHIP_SIZE as u32;
-    let small = image::imageops::resize(&crop, n, n, image::imageops::FilterType::Triangle);
-    let mut planar = vec![0f32; 3 * CHIP_SIZE * CHIP_SIZE];
-    for (i, p) in small.pixels().enumerate() {
-        for c in 0..3 {
-            planar[c * CHIP_SIZE * CHIP_SIZE + i] = f32::from(p[c]);
-        }
-    }
-    Tensor::<1>::from_floats(planar.as_slice(), &Device::default())
-        .reshape([1, 3, CHIP_SIZE, CHIP_SIZE])
+    tensor(&image::imageops::resize(
+        &crop,
+        n,
+        n,
+        image::imageops::FilterType::Triangle,
+    ))
 }
 
 fn net() -> FaceNet {
     let path = builtin_face_net();
     FaceNet::load(&path, &Device::default())
         .unwrap_or_else(|e| panic!("{e} (run ./scripts/fetch-models.sh)"))
-}
-
-fn distance(a: &Tensor<2>, b: &Tensor<2>) -> f32 {
-    (a.clone() - b.clone())
-        .powi_scalar(2)
-        .sum()
-        .sqrt()
-        .into_scalar::<f32>()
 }
 
 const ASTRONAUT_FACE: (u32, u32, u32) = (160, 62, 130);

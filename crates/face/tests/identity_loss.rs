@@ -2,6 +2,8 @@
 //! the exposure (identity does not depend on it), positive when the relighting changes the
 //! face's shading, with a finite, non-zero gradient back into what produced the relit image.
 
+mod common;
+
 use burn::prelude::*;
 use lightfarm_face::{builtin_face_net, identity_loss, FaceAligner, FaceNet, Image};
 
@@ -9,11 +11,12 @@ use lightfarm_face::{builtin_face_net, identity_loss, FaceAligner, FaceNet, Imag
 fn identity_loss_ignores_exposure_and_has_a_gradient() {
     let plain = Device::default();
     let device = plain.clone().autodiff();
-    let path = lightfarm_scene::catalog::builtin_assets_dir().join("photos/astronaut.png");
-    let img = image::open(&path)
-        .unwrap_or_else(|e| panic!("{}: {e}; run ./scripts/fetch-models.sh", path.display()))
-        .resize_exact(192, 192, image::imageops::FilterType::Triangle)
-        .to_rgb8();
+    let img = image::imageops::resize(
+        &common::photo("astronaut.png"),
+        192,
+        192,
+        image::imageops::FilterType::Triangle,
+    );
     let n = 192;
     let aligner = FaceAligner::builtin(&plain).unwrap_or_else(|e| panic!("{e}"));
     let face = aligner

@@ -67,7 +67,7 @@ impl LpipsScorer {
     }
 }
 
-fn planar(rgb: &[[f32; 3]], width: usize, height: usize) -> Planar {
+pub(crate) fn planar(rgb: &[[f32; 3]], width: usize, height: usize) -> Planar {
     let mut data = vec![0f32; 3 * width * height];
     for (i, p) in rgb.iter().enumerate() {
         for c in 0..3 {
@@ -183,6 +183,16 @@ pub fn evaluate(
     Ok(rows)
 }
 
+/// A model's path for a 40-character table column: its end, where long paths differ.
+pub(crate) fn model_column(model: &str) -> String {
+    let chars: Vec<char> = model.chars().collect();
+    if chars.len() > 40 {
+        format!("…{}", chars[chars.len() - 39..].iter().collect::<String>())
+    } else {
+        model.to_owned()
+    }
+}
+
 /// The rows as an aligned text table.
 pub fn table(rows: &[EvalRow]) -> String {
     let with_lpips = rows.iter().any(|r| r.lpips.is_some());
@@ -198,12 +208,7 @@ pub fn table(rows: &[EvalRow]) -> String {
         if with_lpips { "    LPIPS" } else { "" }
     );
     for r in rows {
-        let chars: Vec<char> = r.model.chars().collect();
-        let name = if chars.len() > 40 {
-            format!("…{}", chars[chars.len() - 39..].iter().collect::<String>())
-        } else {
-            r.model.clone()
-        };
+        let name = model_column(&r.model);
         out.push_str(&format!(
             "{:<40} {:>11} {:>8} {:>8.4} {:>8.4} {:>8.4} {:>9}{}\n",
             name,

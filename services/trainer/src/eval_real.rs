@@ -23,8 +23,8 @@ use std::sync::Arc;
 
 use burn::prelude::*;
 use lightfarm_face::{
-    builtin_face_net, descriptor_distance, descriptors, identity_display, Alignment, FaceNet,
-    LazyFaces, SAME_PERSON_DISTANCE,
+    builtin_face_net, descriptor_distance, descriptor_similarity, descriptors, identity_display,
+    Alignment, FaceNet, LazyFaces, SAME_PERSON_DISTANCE,
 };
 use lightfarm_light::{OlatBasis, PrefilteredEnv, OLAT_DISC_DEG};
 use lightfarm_nets::metrics::{fit_sh_irradiance, sphere_error, Planar};
@@ -36,6 +36,7 @@ use serde::Serialize;
 
 use crate::adapt::photos::PhotoSet;
 use crate::data::mix;
+use crate::eval::{model_column, planar};
 use crate::infer::load_model;
 use crate::lights::{identity_camera, Lighting};
 use crate::TrainError;
@@ -202,21 +203,6 @@ fn skin_mask(face: &Alignment, matte: &[f32], size: usize) -> Planar {
     }
 }
 
-fn planar(rgb: &[[f32; 3]], size: usize) -> Planar {
-    let mut data = vec![0f32; 3 * size * size];
-    for (i, c) in rgb.iter().enumerate() {
-        for ch in 0..3 {
-            data[ch * size * size + i] = c[ch];
-        }
-    }
-    Planar {
-        width: size,
-        height: size,
-        channels: 3,
-        data,
-    }
-}
-
 fn to_tensor(rgb: &[[f32; 3]], size: usize, device: &Device) -> Tensor<4> {
     let mut v = vec![0f32; 3 * size * size];
     for (i, c) in rgb.iter().enumerate() {
@@ -325,17 +311,14 @@ pub fn evaluate_real(
                 let display = identity_display(to_tensor(&out.relit, size, &device), mask.clone());
                 let desc = descriptors(&face_net, display.clone(), &faces);
                 let d = descriptor_distance(real_desc.clone(), desc.clone()).into_scalar::<f32>();
-                let cos = (real_desc.clone() * desc.clone()).sum()
-                    / (real_desc.clone().powi_scalar(2).sum().sqrt()
-                        * desc.powi_scalar(2).sum().sqrt())
-                    .clamp_min(1e-12);
+                let cos = descriptor_similarity(real_desc.clone(), desc);
                 sums[k][0] += f64::from(d);
                 sums[k][1] += f64::from(u8::from(d < SAME_PERSON_DISTANCE));
                 sums[k][3] += f64::from(cos.into_scalar::<f32>());
                 if let Some(est) = fit_sh_irradiance(
-                    &planar(&out.relit, size),
-                    &planar(&out.albedo, size),
-                    &planar(&out.normal, size),
+                    &planar(&out.relit, size, size),
+                    &planar(&out.albedo, size, size),
+                    &planar(&out.normal, size, size),
                     &skin,
                 ) {
                     let mul = |n: [f32; 3]| {
@@ -410,12 +393,7 @@ pub fn real_table(rows: &[RealEvalRow]) -> String {
         "OLAT cons"
     );
     for r in rows {
-        let chars: Vec<char> = r.model.chars().collect();
-        let name = if chars.len() > 40 {
-            format!("…{}", chars[chars.len() - 39..].iter().collect::<String>())
-        } else {
-            r.model.clone()
-        };
+        let name = model_column(&r.model);
         out.push_str(&format!(
             "{:<40} {:>6} {:>6} {:>9} {:>9.4} {:>9.4} {:>8.1} {:>9.3} {:>8.4} {:>10.4}\n",
             name,
