@@ -2,7 +2,8 @@
 # Installs the model data that is too large for the repository: the pretrained VGG16 + LPIPS
 # weights (scripts/fetch-vgg16.sh, into assets/models/vgg16/), MODNet for matting photographs
 # (scripts/fetch-modnet.sh, assets/models/modnet/), dlib's face-recognition ResNet for the
-# identity loss and metric (scripts/fetch-face.sh, assets/models/dlib/), three public-domain portrait photos
+# identity loss and metric (scripts/fetch-face.sh, assets/models/dlib/), MediaPipe's face mesh
+# for the skin mask (scripts/fetch-facemesh.sh, assets/models/mediapipe/), three public-domain portrait photos
 # (scripts/fetch-photos.sh, assets/photos/) and MakeHuman's compiled target set
 # (CC0), from the makehuman==1.3.2 wheel on PyPI. Idempotent; every file is checked by hash.
 #
@@ -17,6 +18,7 @@ root="$(cd "$(dirname "$0")/.." && pwd)"
 "$root/scripts/fetch-vgg16.sh"
 "$root/scripts/fetch-modnet.sh"
 "$root/scripts/fetch-face.sh"
+"$root/scripts/fetch-facemesh.sh"
 "$root/scripts/fetch-photos.sh"
 source "$root/scripts/pypi-cache.sh"
 cache="${LIGHTFARM_CACHE:-$HOME/.cache/lightfarm}/wheels"

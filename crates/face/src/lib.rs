@@ -1,7 +1,8 @@
 //! Faces in images, for the paper's identity loss and identity metric (section 4.3, Table 4):
 //! dlib's CNN face detector, its 5-point landmarks, the aligned 150² face chip and its
 //! face-recognition ResNet, all read from dlib's own model files (public domain) and run on
-//! Burn or plain Rust.
+//! Burn or plain Rust; and MediaPipe's face mesh (Apache-2.0, TensorFlow Lite) for the skin
+//! mask of the real-photo lighting metric.
 
 mod align;
 mod detect;
@@ -9,7 +10,10 @@ mod dlib;
 mod dnn;
 mod identity;
 mod landmarks;
+mod mesh;
 mod recognition;
+pub mod skin;
+mod tflite;
 
 pub use align::{face_chips, Alignment, FaceAligner, LazyFaces, CHIP_PADDING};
 pub use detect::{builtin_detector, Detection, FaceDetector, DETECTOR_FILE};
@@ -17,6 +21,7 @@ pub use identity::{
     descriptor_distance, descriptor_similarity, descriptors, identity_display, identity_loss,
 };
 pub use landmarks::{builtin_landmarks, ShapePredictor, LANDMARKS_FILE};
+pub use mesh::{builtin_face_mesh, FaceMesh, Mesh, Roi, MESH_FILE, MESH_FIX, MESH_POINTS};
 pub use recognition::{
     builtin_face_net, FaceNet, CHIP_SIZE, FACE_NET_FILE, FACE_NET_FIX, SAME_PERSON_DISTANCE,
 };
