@@ -112,11 +112,12 @@ pub fn evaluate(
         let l0 = lights.get(&s.spec.lighting[0])?;
         let l1 = lights.get(&s.spec.lighting[1])?;
         let target = planar(&scaled(&s.lit[1], l1.scale), w, h).display();
+        // Section 5.2 fits the lighting on skin: the id pass's skin where the sample has it.
         let mask = Planar {
             width: w,
             height: h,
             channels: 1,
-            data: s.mask.clone(),
+            data: s.skin.clone().unwrap_or_else(|| s.mask.clone()),
         };
         let input = planar(&scaled(&s.lit[0], l0.scale), w, h).display();
         sums[0][0] += mae(&input, &target);

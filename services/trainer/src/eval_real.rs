@@ -6,8 +6,9 @@
 //! - **lighting recovery** (section 5.2): second-order SH irradiance fitted to the relit image
 //!   from the predicted albedo and normals on the face's skin, a diffuse sphere under it
 //!   against one under the target HDRI (exposure matched, relative L1). The paper takes skin
-//!   from a BiSeNet face parser, which is not available offline; here it is an ellipse over
-//!   cheeks, nose and mouth placed by the five landmarks, within the matte;
+//!   from a BiSeNet face parser, which is not available offline; here it is MediaPipe's face
+//!   mesh fitted to the face dlib found: the face oval minus eyes, eyebrows and lips, within
+//!   the matte;
 //! - **identity**: cosine similarity (the paper's ↑ score) and dlib's Euclidean distance
 //!   between the descriptors of the photo and of its relighting on the photo's aligned face
 //!   chip (exposure-normalised, so a brighter lighting is not another person), and the share
@@ -24,17 +25,17 @@ use std::sync::Arc;
 use burn::prelude::*;
 use lightfarm_face::{
     builtin_face_net, descriptor_distance, descriptor_similarity, descriptors, identity_display,
-    Alignment, FaceNet, LazyFaces, SAME_PERSON_DISTANCE,
+    skin, Alignment, FaceMesh, FaceNet, Image, LazyFaces, SAME_PERSON_DISTANCE,
 };
 use lightfarm_light::{OlatBasis, PrefilteredEnv, OLAT_DISC_DEG};
-use lightfarm_nets::metrics::{fit_sh_irradiance, sphere_error, Planar};
+use lightfarm_nets::metrics::{fit_sh_irradiance, sphere_error, srgb_encode, Planar};
 use lightfarm_nets::Vgg16;
 use lightfarm_photo::LazyMatting;
 use lightfarm_scene::{AssetKind, Catalog};
 use nalgebra::DMatrix;
 use serde::Serialize;
 
-use crate::adapt::photos::PhotoSet;
+use crate::adapt::photos::{PhotoSet, Prepared};
 use crate::data::mix;
 use crate::eval::{model_column, planar};
 use crate::infer::load_model;
@@ -167,41 +168,35 @@ pub fn kernel_distance(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
     within(a) + within(b) - 2.0 * across / (a.len() * b.len()).max(1) as f64
 }
 
-/// Skin for the lighting fit: an ellipse over cheeks, nose and mouth placed by the landmarks
-/// (its axes along and across the eye line, 0.55 and 0.8 of the outer eye-corner distance,
-/// centred 60% of the way from the eyes to the base of the nose), within the matte.
-fn skin_mask(face: &Alignment, matte: &[f32], size: usize) -> Planar {
-    let l = &face.landmarks;
-    let eyes = [0, 1, 2, 3].iter().fold([0.0, 0.0], |s, &i| {
-        [s[0] + l[i][0] / 4.0, s[1] + l[i][1] / 4.0]
-    });
-    let span = (l[0][0] - l[2][0]).hypot(l[0][1] - l[2][1]).max(1.0);
-    let along = [(l[0][0] - l[2][0]) / span, (l[0][1] - l[2][1]) / span];
-    let centre = [
-        eyes[0] + 0.6 * (l[4][0] - eyes[0]),
-        eyes[1] + 0.6 * (l[4][1] - eyes[1]),
-    ];
-    let (ra, rb) = (0.55 * span, 0.8 * span);
-    let data = (0..size * size)
-        .map(|i| {
-            let (dx, dy) = ((i % size) as f32 - centre[0], (i / size) as f32 - centre[1]);
-            let u = dx * along[0] + dy * along[1];
-            let v = -dx * along[1] + dy * along[0];
-            let inside = (u / ra).powi(2) + (v / rb).powi(2) <= 1.0;
-            if inside && matte[i] > 0.5 {
-                1.0
-            } else {
-                0.0
-            }
-        })
+/// Skin for the lighting fit: the face mesh's oval minus eyes, eyebrows and lips (see
+/// `lightfarm_face::skin`), within the matte. The mesh is fitted on the prepared image from
+/// dlib's face; None when the mesh network does not see a face there.
+fn skin_mask(mesh_net: &FaceMesh, p: &Prepared, face: &Alignment, size: usize) -> Option<Planar> {
+    let rgb: Vec<u8> = p
+        .rgb
+        .iter()
+        .flat_map(|c| c.map(|v| (srgb_encode(v).clamp(0.0, 1.0) * 255.0 + 0.5) as u8))
         .collect();
-    Planar {
+    let image = Image::new(&rgb, size, size).ok()?;
+    let mesh = mesh_net.fit(&image, face);
+    if mesh.presence < MIN_MESH_PRESENCE {
+        return None;
+    }
+    let data = skin::skin_mask(&mesh, size, size)
+        .into_iter()
+        .zip(&p.mask)
+        .map(|(s, &m)| if m > 0.5 { s } else { 0.0 })
+        .collect();
+    Some(Planar {
         width: size,
         height: size,
         channels: 1,
         data,
-    }
+    })
 }
+
+/// Below this face-presence probability the mesh is not trusted for a skin mask.
+const MIN_MESH_PRESENCE: f32 = 0.5;
 
 fn to_tensor(rgb: &[[f32; 3]], size: usize, device: &Device) -> Tensor<4> {
     let mut v = vec![0f32; 3 * size * size];
@@ -229,6 +224,8 @@ pub fn evaluate_real(
         .collect::<Result<Vec<_>, _>>()?;
     let face_net = FaceNet::load(&builtin_face_net(), &device)
         .map_err(|e| TrainError::Config(format!("identity metric: {e}")))?;
+    let mesh_net = FaceMesh::builtin(&device)
+        .map_err(|e| TrainError::Config(format!("skin mask of the lighting metric: {e}")))?;
     let vgg = Vgg16::load(&opts.vgg, &device)
         .map_err(|e| TrainError::Config(format!("FD-VGG and KID: {e}")))?;
     let photos = PhotoSet::open(
@@ -273,7 +270,13 @@ pub fn evaluate_real(
         let mask =
             Tensor::<4>::from_data(TensorData::new(p.mask.clone(), [1, 1, size, size]), &device);
         let real_display = identity_display(input.clone(), mask.clone());
-        let skin = skin_mask(&face, &p.mask, size);
+        let skin = skin_mask(&mesh_net, &p, &face, size);
+        if skin.is_none() {
+            tracing::warn!(
+                photo = i,
+                "the face mesh sees no face in the prepared photo; it gets no lighting-recovery score"
+            );
+        }
         let faces = [face];
         let real_desc = descriptors(&face_net, real_display.clone(), &faces);
         real_features.extend(vgg_features(&vgg, real_display * mask.clone()));
@@ -315,12 +318,15 @@ pub fn evaluate_real(
                 sums[k][0] += f64::from(d);
                 sums[k][1] += f64::from(u8::from(d < SAME_PERSON_DISTANCE));
                 sums[k][3] += f64::from(cos.into_scalar::<f32>());
-                if let Some(est) = fit_sh_irradiance(
-                    &planar(&out.relit, size, size),
-                    &planar(&out.albedo, size, size),
-                    &planar(&out.normal, size, size),
-                    &skin,
-                ) {
+                let fit = skin.as_ref().and_then(|skin| {
+                    fit_sh_irradiance(
+                        &planar(&out.relit, size, size),
+                        &planar(&out.albedo, size, size),
+                        &planar(&out.normal, size, size),
+                        skin,
+                    )
+                });
+                if let Some(est) = fit {
                     let mul = |n: [f32; 3]| {
                         [0, 1, 2].map(|i| rot[i][0] * n[0] + rot[i][1] * n[1] + rot[i][2] * n[2])
                     };

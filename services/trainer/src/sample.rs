@@ -21,6 +21,9 @@ pub struct SampleImages {
     pub normal: Vec<[f32; 3]>,
     pub normal_lens: Vec<[f32; 3]>,
     pub mask: Vec<f32>,
+    /// 1 where the first surface the camera sees is skin (the `id` pass), when the sample has
+    /// that pass and its id table.
+    pub skin: Option<Vec<f32>>,
     pub spec: SampleSpec,
 }
 
@@ -87,6 +90,14 @@ pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainErro
         }
     };
     let spec = spec_from_attribute(&text).map_err(bad)?;
+    let skin = match (skin_id(&text), channel("id.A")) {
+        (Some(id), Ok(ids)) => Some(
+            ids.into_iter()
+                .map(|v| f32::from(u8::from(v == id as f32)))
+                .collect(),
+        ),
+        _ => None,
+    };
     let normal = rgb("normal", ["X", "Y", "Z"])?;
     let normal_lens = lens_normals(&normal, rgb("normal_lens", ["X", "Y", "Z"])?);
     Ok(SampleImages {
@@ -97,6 +108,7 @@ pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainErro
         normal,
         normal_lens,
         mask: coverage(channel("mask.A")?),
+        skin,
         spec,
     })
 }
@@ -111,6 +123,16 @@ pub(crate) fn spec_from_attribute(text: &str) -> Result<SampleSpec, String> {
             .unwrap_or(serde_json::Value::Null),
     )
     .map_err(|e| format!("{SAMPLE_ATTRIBUTE} holds no valid sample spec ({e})"))
+}
+
+/// The `id` pass's value for skin, from the `id_table` of a `SAMPLE_ATTRIBUTE` header.
+fn skin_id(text: &str) -> Option<u32> {
+    let meta: serde_json::Value = serde_json::from_str(text).ok()?;
+    meta.get("id_table")?
+        .as_object()?
+        .iter()
+        .find(|(_, name)| name.as_str() == Some("skin"))
+        .and_then(|(id, _)| id.parse().ok())
 }
 
 /// A mask channel as coverage: clamped to [0, 1], non-finite values as 0.

@@ -228,6 +228,20 @@ fn truncated_or_foreign_exrs_are_errors_naming_the_sample() {
     let bytes = std::fs::read(&exr_path).unwrap();
     let good = lightfarm_trainer::sample::decode_sample(&bytes, "s0").unwrap();
     assert_eq!((good.width, good.height), (common::SIZE, common::SIZE));
+    // The id pass gives the skin the lighting metric fits to: inside the subject, not all of it.
+    let skin = good
+        .skin
+        .as_ref()
+        .expect("a rendered sample has the id pass and its table");
+    let (on_skin, subject) = (skin.iter().sum::<f32>(), good.mask.iter().sum::<f32>());
+    assert!(
+        on_skin > 0.0 && on_skin < subject,
+        "skin {on_skin} of {subject} subject pixels"
+    );
+    assert!(skin
+        .iter()
+        .zip(&good.mask)
+        .all(|(&s, &m)| s == 0.0 || m > 0.0));
     for cut in [0, 8, bytes.len() / 2, bytes.len() - 1] {
         let err = lightfarm_trainer::sample::decode_sample(&bytes[..cut], "s0")
             .expect_err("truncated")
