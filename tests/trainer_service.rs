@@ -1,6 +1,7 @@
 //! The trainer service as a real process: `lightfarm serve trainer` killed with SIGKILL mid-job
 //! resumes the job from its newest checkpoint, cancels on request, and serves
-//! `lightfarm train --trainer`.
+//! `lightfarm train --trainer` and `lightfarm adapt --trainer` (followed through a SIGKILL of
+//! the trainer).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -184,6 +185,73 @@ fn the_trainer_service_resumes_a_job_after_sigkill() {
         String::from_utf8_lossy(&r.stdout).contains("completed at step 4"),
         "{}",
         String::from_utf8_lossy(&r.stdout)
+    );
+
+    // `lightfarm adapt --trainer` adapts that job's final model on a photo folder under the
+    // trainer's --datasets; the trainer is killed mid-adaptation and the command follows the
+    // resumed job to its end.
+    let root = dataset().parent().expect("parent");
+    std::fs::create_dir_all(root.join("portraits")).expect("mkdir");
+    let photo = lightfarm_scene::catalog::builtin_assets_dir().join("photos/astronaut.png");
+    std::fs::copy(&photo, root.join("portraits/astronaut.png"))
+        .unwrap_or_else(|e| panic!("{}: {e}; run ./scripts/fetch-models.sh", photo.display()));
+    let adapt_cfg = tmp.path().join("adapt.toml");
+    std::fs::write(
+        &adapt_cfg,
+        "base = \"ignored\"\nphotos = \"ignored\"\nout = \"ignored\"\nbatch = 1\nsize = 32\n\
+         checkpoint_every = 2\nhdris = [\"studio_small_03\", \"venice_sunset\"]\ncritic_width = 8\n\
+         olat_lights = 8\nvgg_weights = \"none\"\n[weights]\nsimilarity = 0\nidentity = 0\n\
+         [adapter]\nbase = 4\nblocks = 2\n",
+    )
+    .expect("adapt config");
+    let remote = bin()
+        .args(["adapt", adapt_cfg.to_str().expect("utf8"), "--steps", "12"])
+        .args(["--trainer", &format!("http://{listen}"), "--token", "t0k"])
+        .args(["--base-job", "train-000002", "--photos", "portraits"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("remote adapt");
+    let adapt_id = "adapt-000003";
+    let started = Instant::now();
+    while rt
+        .block_on(c.list_train_jobs(pb::ListTrainJobsRequest {}))
+        .expect("list")
+        .into_inner()
+        .jobs
+        .iter()
+        .all(|j| j.id != adapt_id)
+    {
+        assert!(
+            started.elapsed() < Duration::from_secs(60),
+            "no adaptation job"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    wait_step(&mut c, adapt_id, 3);
+    let (at_kill, _) = step_of(&mut c, adapt_id);
+    server.kill().expect("SIGKILL");
+    let _ = server.wait();
+    let mut server = start();
+    let r = remote.wait_with_output().expect("remote adapt");
+    let said = String::from_utf8_lossy(&r.stdout);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(
+        said.contains(adapt_id) && said.contains("completed at step 12"),
+        "{said}"
+    );
+    let adapt_steps: Vec<u64> = losses(&data.join("jobs").join(adapt_id).join("run"))
+        .iter()
+        .map(|l| l["step"].as_u64().expect("step"))
+        .collect();
+    assert_eq!(
+        adapt_steps,
+        (1..=12).collect::<Vec<_>>(),
+        "one line per step across the kill"
+    );
+    assert!(
+        at_kill < 12,
+        "the kill came after the adaptation ended (step {at_kill})"
     );
 
     server.kill().expect("kill");

@@ -8,6 +8,7 @@ mod farm_cmd;
 mod olat_cmd;
 mod people_cmd;
 mod preview_cmd;
+mod remote_job;
 mod render_cmd;
 mod sheet;
 mod spec_cmd;

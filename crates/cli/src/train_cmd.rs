@@ -119,11 +119,7 @@ async fn remote_train(url: String, a: TrainArgs) -> Result<()> {
     use lightfarm_proto::v1 as pb;
     let text = std::fs::read_to_string(&a.config)
         .with_context(|| format!("reading {}", a.config.display()))?;
-    let token = a
-        .token
-        .context("--token (or LIGHTFARM_TOKEN) is needed to reach a trainer service")?;
-    let (ch, auth) = lightfarm_worker::client::channel(&url, &token, None)?;
-    let mut client = pb::trainer_client::TrainerClient::with_interceptor(ch, auth);
+    let mut client = crate::remote_job::connect(&url, a.token)?;
     let job = client
         .submit_train_job(pb::SubmitTrainJobRequest {
             config_toml: text,
@@ -135,69 +131,13 @@ async fn remote_train(url: String, a: TrainArgs) -> Result<()> {
         .await
         .map_err(|s| anyhow::anyhow!("--trainer {url}: {}", s.message()))?
         .into_inner();
-    println!("{}", job.id);
-    let bar = ProgressBar::new(job.steps).with_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} steps  eta {eta}  {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let mut last = job;
-    let terminal = |state: i32| {
-        [
-            pb::TrainJobState::Completed,
-            pb::TrainJobState::Failed,
-            pb::TrainJobState::Cancelled,
-        ]
-        .iter()
-        .any(|s| *s as i32 == state)
-    };
-    // A restarting trainer resumes the job; follow it through the restart.
-    while !terminal(last.state) {
-        let watched = client
-            .watch_train_job(pb::TrainJobRef {
-                job_id: last.id.clone(),
-            })
-            .await;
-        let mut stream = match watched {
-            Ok(s) => s.into_inner(),
-            Err(s) if lightfarm_worker::client::transient(&s) => {
-                bar.set_message(format!("trainer unreachable ({}); retrying", s.message()));
-                tokio::time::sleep(std::time::Duration::from_secs(1)).await;
-                continue;
-            }
-            Err(s) => bail!("watching {}: {}", last.id, s.message()),
-        };
-        loop {
-            match stream.message().await {
-                Ok(Some(p)) => {
-                    if let Some(l) = p.losses.last() {
-                        bar.set_message(format!(
-                            "loss {:.4} (relit {:.4}) {:.1} samples/s",
-                            l.total, l.relit, l.samples_per_second
-                        ));
-                    }
-                    if let Some(j) = p.job {
-                        bar.set_position(j.step);
-                        last = j;
-                    }
-                }
-                Ok(None) => break,
-                Err(s) if lightfarm_worker::client::transient(&s) => break,
-                Err(s) => bail!("watching {}: {}", last.id, s.message()),
-            }
-        }
-    }
-    bar.finish();
-    match pb::TrainJobState::try_from(last.state) {
-        Ok(pb::TrainJobState::Completed) => {
-            println!("{} completed at step {}", last.id, last.step);
-            Ok(())
-        }
-        Ok(pb::TrainJobState::Cancelled) => {
-            println!("{} cancelled at step {}", last.id, last.step);
-            Ok(())
-        }
-        _ => bail!("{} failed: {}", last.id, last.error),
-    }
+    crate::remote_job::follow(&mut client, job, |l| {
+        format!(
+            "loss {:.4} (relit {:.4}) {:.1} samples/s",
+            l.total, l.relit, l.samples_per_second
+        )
+    })
+    .await
 }
 
 #[derive(Args, Debug)]
@@ -214,15 +154,12 @@ pub struct TrainJobsArgs {
     pub token: Option<String>,
 }
 
-/// One line per job: id, state, step/steps, dataset, error.
+/// One line per job: id, state, step/steps, dataset (an adaptation job: its photos and base
+/// job), error.
 pub fn train_jobs(a: TrainJobsArgs) -> Result<()> {
     use lightfarm_proto::v1 as pb;
     crate::farm_cmd::runtime()?.block_on(async {
-        let token = a
-            .token
-            .context("--token (or LIGHTFARM_TOKEN) is needed to reach a trainer service")?;
-        let (ch, auth) = lightfarm_worker::client::channel(&a.trainer, &token, None)?;
-        let mut client = pb::trainer_client::TrainerClient::with_interceptor(ch, auth);
+        let mut client = crate::remote_job::connect(&a.trainer, a.token)?;
         let jobs = client
             .list_train_jobs(pb::ListTrainJobsRequest {})
             .await
@@ -244,8 +181,13 @@ pub fn train_jobs(a: TrainJobsArgs) -> Result<()> {
             } else {
                 format!("  error: {}", j.error)
             };
+            let base = if j.base_job_id.is_empty() {
+                String::new()
+            } else {
+                format!(" (adapting {})", j.base_job_id)
+            };
             println!(
-                "{:<28} {:<10} {:>15}  {}{error}",
+                "{:<28} {:<10} {:>15}  {}{base}{error}",
                 j.id, state, step, j.dataset
             );
         }

@@ -1,10 +1,18 @@
-//! The trainer as a gRPC service (`proto/lightfarm/v1/trainer.proto`): train jobs queued and run
-//! one at a time on a background thread, each in `data/jobs/<id>/` (job.json + its run
+//! The trainer as a gRPC service (`proto/lightfarm/v1/trainer.proto`): train jobs and
+//! adaptation jobs (a completed train job's model adapted to a folder of real photos) queued
+//! and run one at a time on a background thread, each in `data/jobs/<id>/` (job.json + its run
 //! directory). A restart — including after `kill -9` — re-queues unfinished jobs, which resume
 //! from their newest checkpoint.
+//!
+//! `submit` checks requests and queues jobs, `progress` turns both kinds of loss log into
+//! `LossPoint`s, `relight` serves `Relight`.
+
+mod progress;
+mod relight;
+mod submit;
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
@@ -15,12 +23,10 @@ use serde::{Deserialize, Serialize};
 use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
+use crate::adapt::{AdaptConfig, AdaptLog, AdaptObserver};
 use crate::config::TrainConfig;
 use crate::farm::FarmAddress;
-use crate::image_io::{gray_png_bytes, load_portrait, png_bytes};
-use crate::infer::{load_model, normal_colours};
-use crate::lights::{identity_camera, Lighting};
-use crate::train::{latest_checkpoint, read_losses, write_atomic, CHECKPOINTS, LATEST};
+use crate::train::{latest_checkpoint, write_atomic, CHECKPOINTS, LATEST};
 use crate::{Observer, StepLog, TrainError};
 
 const JOB_FILE: &str = "job.json";
@@ -46,13 +52,31 @@ struct JobRecord {
     dataset: String,
     error: String,
     config_toml: String,
+    /// A `pb::TrainJobKind`; records from before adaptation jobs have none (train).
+    #[serde(default)]
+    kind: i32,
+    /// ADAPT: the train job adapted, and its checkpoint directory relative to the data
+    /// directory, fixed at submission.
+    #[serde(default)]
+    base_job_id: String,
+    #[serde(default)]
+    base_checkpoint: String,
+}
+
+impl JobRecord {
+    fn kind(&self) -> pb::TrainJobKind {
+        match pb::TrainJobKind::try_from(self.kind) {
+            Ok(pb::TrainJobKind::Adapt) => pb::TrainJobKind::Adapt,
+            _ => pb::TrainJobKind::Train,
+        }
+    }
 }
 
 struct Job {
     record: JobRecord,
     step: u64,
     cancel: Arc<AtomicBool>,
-    updates: tokio::sync::broadcast::Sender<Option<StepLog>>,
+    updates: tokio::sync::broadcast::Sender<Option<pb::LossPoint>>,
 }
 
 struct Inner {
@@ -100,9 +124,9 @@ impl TrainerService {
                 record.state = pb::TrainJobState::Queued as i32;
                 pending.push(record.id.clone());
             }
-            let step = read_losses(&path.with_file_name(RUN_DIR))
-                .map(|l| l.last().map_or(0, |l| l.step))
-                .unwrap_or(0);
+            let step = progress::read_curve(&path.with_file_name(RUN_DIR), record.kind())
+                .last()
+                .map_or(0, |l| l.step);
             jobs.insert(
                 record.id.clone(),
                 Job {
@@ -173,10 +197,10 @@ impl TrainerService {
         struct Publish<'a> {
             svc: &'a TrainerService,
             id: &'a str,
-            updates: tokio::sync::broadcast::Sender<Option<StepLog>>,
+            updates: tokio::sync::broadcast::Sender<Option<pb::LossPoint>>,
         }
-        impl Observer for Publish<'_> {
-            fn on_step(&mut self, log: &StepLog) {
+        impl Publish<'_> {
+            fn publish(&mut self, point: pb::LossPoint) {
                 if let Some(job) = self
                     .svc
                     .0
@@ -185,28 +209,40 @@ impl TrainerService {
                     .unwrap_or_else(|p| p.into_inner())
                     .get_mut(self.id)
                 {
-                    job.step = log.step;
+                    job.step = point.step;
                 }
-                let _ = self.updates.send(Some(log.clone()));
+                let _ = self.updates.send(Some(point));
             }
         }
-        let result = self.config_of(&record).and_then(|cfg| {
-            crate::train(
-                &cfg,
-                self.0.cfg.catalog.clone(),
-                &mut Publish {
-                    svc: self,
-                    id,
-                    updates,
-                },
-                &cancel,
-            )
-        });
+        impl Observer for Publish<'_> {
+            fn on_step(&mut self, log: &StepLog) {
+                self.publish(progress::train_point(log));
+            }
+        }
+        impl AdaptObserver for Publish<'_> {
+            fn on_step(&mut self, log: &AdaptLog) {
+                self.publish(progress::adapt_point(log));
+            }
+        }
+        let mut publish = Publish {
+            svc: self,
+            id,
+            updates,
+        };
+        let catalog = self.0.cfg.catalog.clone();
+        let result = match record.kind() {
+            pb::TrainJobKind::Adapt => self.adapt_config_of(&record).and_then(|cfg| {
+                crate::adapt::adapt(&cfg, catalog, &mut publish, &cancel).map(|s| s.cancelled)
+            }),
+            _ => self.config_of(&record).and_then(|cfg| {
+                crate::train(&cfg, catalog, &mut publish, &cancel).map(|s| s.cancelled)
+            }),
+        };
         match result {
-            Ok(s) if s.cancelled => self.set_state(id, pb::TrainJobState::Cancelled, String::new()),
-            Ok(_) => self.set_state(id, pb::TrainJobState::Completed, String::new()),
+            Ok(true) => self.set_state(id, pb::TrainJobState::Cancelled, String::new()),
+            Ok(false) => self.set_state(id, pb::TrainJobState::Completed, String::new()),
             Err(e) => {
-                tracing::error!(job = id, "training failed: {e}");
+                tracing::error!(job = id, "job failed: {e}");
                 self.set_state(id, pb::TrainJobState::Failed, e.to_string());
             }
         }
@@ -223,70 +259,65 @@ impl TrainerService {
         }
         cfg.out = self.job_dir(&record.id).join(RUN_DIR);
         cfg.device = self.0.cfg.device.clone();
-        cfg.vgg_weights = cfg.vgg_weights.map(|v| {
+        cfg.vgg_weights = self.vgg_weights(cfg.vgg_weights);
+        cfg.validate().map_err(TrainError::Config)?;
+        Ok(cfg)
+    }
+
+    fn adapt_config_of(&self, record: &JobRecord) -> Result<AdaptConfig, TrainError> {
+        let mut cfg: AdaptConfig = toml::from_str(&record.config_toml)
+            .map_err(|e| TrainError::Config(format!("job {}: {e}", record.id)))?;
+        cfg.base = self.0.cfg.data.join(&record.base_checkpoint);
+        cfg.photos = self.0.cfg.datasets.join(&record.dataset);
+        cfg.out = self.job_dir(&record.id).join(RUN_DIR);
+        cfg.device = self.0.cfg.device.clone();
+        cfg.vgg_weights = self.vgg_weights(cfg.vgg_weights);
+        cfg.validate().map_err(TrainError::Config)?;
+        Ok(cfg)
+    }
+
+    /// A job's `vgg_weights`: a keyword, or a file under the datasets root.
+    fn vgg_weights(&self, v: Option<PathBuf>) -> Option<PathBuf> {
+        v.map(|v| {
             if crate::config::is_keyword(&v) {
                 v
             } else {
                 self.0.cfg.datasets.join(v)
             }
-        });
-        cfg.validate().map_err(TrainError::Config)?;
-        Ok(cfg)
+        })
     }
 
-    fn to_pb(job: &Job) -> pb::TrainJob {
+    fn to_pb(&self, job: &Job) -> pb::TrainJob {
+        let r = &job.record;
         pb::TrainJob {
-            id: job.record.id.clone(),
-            state: job.record.state,
+            id: r.id.clone(),
+            state: r.state,
             step: job.step,
-            steps: job.record.steps,
-            dataset: job.record.dataset.clone(),
-            error: job.record.error.clone(),
-            config_toml: job.record.config_toml.clone(),
+            steps: r.steps,
+            dataset: r.dataset.clone(),
+            error: r.error.clone(),
+            config_toml: r.config_toml.clone(),
+            kind: r.kind() as i32,
+            base_job_id: r.base_job_id.clone(),
+            base_checkpoint: if r.base_checkpoint.is_empty() {
+                String::new()
+            } else {
+                self.0
+                    .cfg
+                    .data
+                    .join(&r.base_checkpoint)
+                    .display()
+                    .to_string()
+            },
         }
     }
 
     fn get(&self, id: &str) -> Result<pb::TrainJob, Status> {
         let jobs = self.0.jobs.lock().unwrap_or_else(|p| p.into_inner());
         jobs.get(id)
-            .map(Self::to_pb)
+            .map(|j| self.to_pb(j))
             .ok_or_else(|| Status::not_found(format!("no train job '{id}'")))
     }
-}
-
-fn loss_point(l: &StepLog) -> pb::LossPoint {
-    pb::LossPoint {
-        step: l.step,
-        total: l.total,
-        normal: l.normal,
-        normal_lens: l.normal_lens,
-        albedo: l.albedo,
-        relit: l.relit,
-        residual: l.residual.unwrap_or(0.0),
-        adversarial: l.adversarial.unwrap_or(0.0),
-        critic: l.critic.unwrap_or(0.0),
-        samples_per_second: l.samples_per_second,
-        perceptual: l.perceptual.unwrap_or(0.0),
-    }
-}
-
-/// A dataset (or weights) path must stay inside the datasets root.
-fn relative_dataset(path: &str) -> Result<PathBuf, Status> {
-    under_datasets("dataset", "a folder export's", path)
-}
-
-fn under_datasets(key: &str, what: &str, path: &str) -> Result<PathBuf, Status> {
-    let p = Path::new(path);
-    if path.is_empty()
-        || p.is_absolute()
-        || p.components()
-            .any(|c| !matches!(c, std::path::Component::Normal(_)))
-    {
-        return Err(Status::invalid_argument(format!(
-            "{key} '{path}': give {what} path relative to the trainer's --datasets directory"
-        )));
-    }
-    Ok(p.to_owned())
 }
 
 #[tonic::async_trait]
@@ -295,106 +326,14 @@ impl pb::trainer_server::Trainer for TrainerService {
         &self,
         req: Request<pb::SubmitTrainJobRequest>,
     ) -> Result<Response<pb::TrainJob>, Status> {
-        let r = req.into_inner();
-        // `out` is the service's to set, and `dataset` is a name under its --datasets root:
-        // taken from the request, else from the config a user also trains with locally.
-        let mut table: toml::Table = toml::from_str(&r.config_toml)
-            .map_err(|e| Status::invalid_argument(format!("config_toml: {e}")))?;
-        let from_config = table
-            .remove("dataset")
-            .and_then(|v| v.as_str().map(str::to_owned));
-        table.remove("out");
-        let named = if r.dataset.is_empty() {
-            from_config.unwrap_or_default()
-        } else {
-            r.dataset.clone()
-        };
-        let farm = FarmAddress::is_farm(&named);
-        let dataset = if farm {
-            FarmAddress::parse(&named).map_err(|e| Status::invalid_argument(e.to_string()))?;
-            PathBuf::from(&named)
-        } else {
-            relative_dataset(&named)?
-        };
-        table.insert("dataset".into(), "-".into());
-        table.insert("out".into(), "-".into());
-        let mut cfg: TrainConfig = table
-            .try_into()
-            .map_err(|e: toml::de::Error| Status::invalid_argument(format!("config_toml: {e}")))?;
-        if !r.split.is_empty() {
-            cfg.split = r.split;
-        }
-        if r.steps > 0 {
-            cfg.steps = r.steps;
-        }
-        if r.batch > 0 {
-            cfg.batch = r.batch as usize;
-        }
-        cfg.validate()
-            .map_err(|e| Status::invalid_argument(format!("config: {e}")))?;
-        if let Some(v) = cfg
-            .vgg_weights
-            .as_ref()
-            .filter(|v| !crate::config::is_keyword(v))
-        {
-            let rel = under_datasets("vgg_weights", "a safetensors file's", &v.to_string_lossy())?;
-            if !self.0.cfg.datasets.join(&rel).is_file() {
-                return Err(Status::failed_precondition(format!(
-                    "vgg_weights '{}': no such file under the trainer's --datasets directory",
-                    v.display()
-                )));
-            }
-        }
-        if cfg.stream.tls_ca.is_some() || cfg.stream.cache_dir.is_some() {
-            return Err(Status::invalid_argument(
-                "[stream] tls_ca and cache_dir are the trainer service's to set; remove them",
-            ));
-        }
-        if farm {
-            // Checked when the job starts (the coordinator may be busy or restarting now).
-            if self.0.cfg.coordinator_token.is_none() {
-                return Err(Status::failed_precondition(
-                    "this trainer has no coordinator token for farm:// datasets: start it with \
-                     --coordinator-token (or LIGHTFARM_COORDINATOR_TOKEN)",
-                ));
-            }
-        } else {
-            let full = self.0.cfg.datasets.join(&dataset);
-            crate::data::Dataset::open(&full, &cfg.split)
-                .map_err(|e| Status::failed_precondition(e.to_string()))?;
-        }
-        let id = {
-            let jobs = self.0.jobs.lock().unwrap_or_else(|p| p.into_inner());
-            format!("train-{:06}", jobs.len() + 1)
-        };
-        let record = JobRecord {
-            id: id.clone(),
-            state: pb::TrainJobState::Queued as i32,
-            steps: cfg.steps,
-            dataset: dataset.to_string_lossy().into_owned(),
-            error: String::new(),
-            config_toml: toml::to_string(&cfg).map_err(internal)?,
-        };
-        self.persist(&record).map_err(internal)?;
-        let job = Job {
-            record,
-            step: 0,
-            cancel: Arc::default(),
-            updates: tokio::sync::broadcast::channel(1024).0,
-        };
-        let pb_job = Self::to_pb(&job);
-        self.0
-            .jobs
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .insert(id.clone(), job);
-        self.0
-            .queue
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .send(id)
-            .map_err(internal)?;
-        Ok(Response::new(pb_job))
+        self.submit_train(req.into_inner()).map(Response::new)
+    }
+
+    async fn submit_adapt_job(
+        &self,
+        req: Request<pb::SubmitAdaptJobRequest>,
+    ) -> Result<Response<pb::TrainJob>, Status> {
+        self.submit_adapt(req.into_inner()).map(Response::new)
     }
 
     type WatchTrainJobStream = ReceiverStream<Result<pb::TrainProgress, Status>>;
@@ -411,13 +350,11 @@ impl pb::trainer_server::Trainer for TrainerService {
                 .updates
                 .subscribe()
         };
+        let job = self.get(&id)?;
+        let kind = pb::TrainJobKind::try_from(job.kind).unwrap_or(pb::TrainJobKind::Train);
         let first = pb::TrainProgress {
-            job: Some(self.get(&id)?),
-            losses: read_losses(&self.job_dir(&id).join(RUN_DIR))
-                .unwrap_or_default()
-                .iter()
-                .map(loss_point)
-                .collect(),
+            losses: progress::read_curve(&self.job_dir(&id).join(RUN_DIR), kind),
+            job: Some(job),
         };
         let (tx, rx) = tokio::sync::mpsc::channel(64);
         let svc = self.clone();
@@ -435,7 +372,7 @@ impl pb::trainer_server::Trainer for TrainerService {
                 job = svc.get(&id).ok();
                 let msg = pb::TrainProgress {
                     job: job.clone(),
-                    losses: point.iter().map(loss_point).collect(),
+                    losses: point.into_iter().collect(),
                 };
                 if tx.send(Ok(msg)).await.is_err() {
                     return;
@@ -470,7 +407,7 @@ impl pb::trainer_server::Trainer for TrainerService {
     ) -> Result<Response<pb::ListTrainJobsResponse>, Status> {
         let jobs = self.0.jobs.lock().unwrap_or_else(|p| p.into_inner());
         Ok(Response::new(pb::ListTrainJobsResponse {
-            jobs: jobs.values().map(Self::to_pb).collect(),
+            jobs: jobs.values().map(|j| self.to_pb(j)).collect(),
         }))
     }
 
@@ -510,7 +447,7 @@ impl pb::trainer_server::Trainer for TrainerService {
         let run = self.job_dir(&r.job_id).join(RUN_DIR);
         if latest_checkpoint(&run).map_err(internal)?.is_none() {
             return Err(Status::failed_precondition(format!(
-                "train job '{}' has no checkpoint yet",
+                "job '{}' has no checkpoint yet",
                 r.job_id
             )));
         }
@@ -523,78 +460,6 @@ impl pb::trainer_server::Trainer for TrainerService {
 }
 
 impl TrainerService {
-    fn relight_blocking(
-        &self,
-        run: &Path,
-        r: pb::RelightRequest,
-    ) -> Result<pb::RelightResponse, Status> {
-        let bad = |e: TrainError| Status::invalid_argument(e.to_string());
-        let tmp = tempfile::tempdir().map_err(internal)?;
-        let image = tmp.path().join("image");
-        std::fs::write(&image, &r.image).map_err(internal)?;
-        let mask = if r.mask.is_empty() {
-            None
-        } else {
-            let m = tmp.path().join("mask");
-            std::fs::write(&m, &r.mask).map_err(internal)?;
-            Some(m)
-        };
-        let lighting = match r.lighting {
-            Some(pb::relight_request::Lighting::HdriId(id)) => {
-                let asset = self
-                    .0
-                    .cfg
-                    .catalog
-                    .get(&id)
-                    .filter(|a| a.kind == lightfarm_scene::AssetKind::Hdri)
-                    .ok_or_else(|| {
-                        Status::invalid_argument(format!(
-                            "hdri_id '{id}' is not an HDRI of the trainer's catalog"
-                        ))
-                    })?;
-                Lighting::load(&self.0.cfg.catalog.path_of(asset)).map_err(bad)?
-            }
-            Some(pb::relight_request::Lighting::HdriFile(bytes)) => {
-                let ext = if bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
-                    "exr"
-                } else {
-                    "hdr"
-                };
-                let p = tmp.path().join(format!("env.{ext}"));
-                std::fs::write(&p, &bytes).map_err(internal)?;
-                Lighting::load(&p).map_err(bad)?
-            }
-            None => return Err(Status::invalid_argument("give hdri_id or hdri_file")),
-        };
-        let model = load_model(run, &self.0.cfg.device).map_err(internal)?;
-        let matte = (!r.no_matte).then_some(&self.0.matting);
-        let p = load_portrait(&image, mask.as_deref(), matte).map_err(|e| match e {
-            // The trainer's installation lacks MODNet: not the caller's input.
-            TrainError::Photo(lightfarm_photo::PhotoError::Model { .. }) => {
-                Status::failed_precondition(e.to_string())
-            }
-            e => bad(e),
-        })?;
-        let rot = identity_camera(r.rotation_deg, r.flip);
-        let (w, h) = (p.width, p.height);
-        let out = model
-            .relight(&p.rgb, &p.mask, w, h, &lighting, rot)
-            .map_err(internal)?;
-        let relit = out.with_inset(&lighting, rot);
-        let png = |rgb: &[[f32; 3]]| png_bytes(w, h, rgb).map_err(internal);
-        Ok(pb::RelightResponse {
-            width: w as u32,
-            height: h as u32,
-            relit_png: png(&relit)?,
-            normal_png: png(&normal_colours(&out.normal))?,
-            albedo_png: png(&out.albedo)?,
-            diffuse_png: png(&out.diffuse)?,
-            specular_png: png(&out.specular)?,
-            mask_png: gray_png_bytes(w, h, &p.mask).map_err(internal)?,
-            matted: p.matted,
-        })
-    }
-
     /// Serves gRPC (bearer `token`) on `listener` until `shutdown` resolves.
     pub async fn serve(
         self,
