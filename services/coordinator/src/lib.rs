@@ -3,8 +3,10 @@
 //!
 //! Layout: [`scheduler`] is the state machine (jobs, tasks, leases, workers) over sled;
 //! [`service`] the gRPC handlers; [`server`] opening the data directory and serving;
-//! [`metrics`] Prometheus; [`error`] the one mapping to gRPC status codes.
+//! [`metrics`] Prometheus and, on the same port, the web [`dashboard`]; [`error`] the one
+//! mapping to gRPC status codes.
 
+pub mod dashboard;
 pub mod durability;
 pub mod error;
 pub mod metrics;

@@ -136,21 +136,27 @@ impl Default for Metrics {
     }
 }
 
-/// Serves `GET /metrics` on `listener` until `shutdown` resolves. The samples/s rate is the
-/// derivative of `lightfarm_samples_committed_total` (Prometheus `rate()`).
+/// Serves `GET /metrics` on `listener` until `shutdown` resolves, and with `dashboard` the web
+/// dashboard (see [`crate::dashboard`]) on the same port. The samples/s rate is the derivative
+/// of `lightfarm_samples_committed_total` (Prometheus `rate()`).
 pub async fn serve_metrics(
     listener: tokio::net::TcpListener,
     metrics: Arc<Metrics>,
     scheduler: Arc<Scheduler>,
+    dashboard: Option<crate::dashboard::DashboardConfig>,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    let app = axum::Router::new().route(
+    let board = dashboard.map(|cfg| crate::dashboard::router(scheduler.clone(), &cfg));
+    let mut app = axum::Router::new().route(
         "/metrics",
         axum::routing::get(move || {
             let (m, s) = (metrics.clone(), scheduler.clone());
             async move { m.render(&s) }
         }),
     );
+    if let Some(board) = board {
+        app = app.merge(board);
+    }
     axum::serve(listener, app)
         .with_graceful_shutdown(shutdown)
         .await

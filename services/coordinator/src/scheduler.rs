@@ -508,6 +508,27 @@ impl Scheduler {
         Ok(status)
     }
 
+    /// Changes a job's priority (higher leases first), persisted like the rest of the job.
+    pub fn set_priority(
+        &self,
+        job_id: &str,
+        priority: i32,
+        now: f64,
+    ) -> Result<JobStatus, CoordError> {
+        let mut inner = self.lock();
+        let job = inner
+            .jobs
+            .get_mut(job_id)
+            .ok_or_else(|| CoordError::UnknownJob(job_id.to_owned()))?;
+        job.rec.priority = priority;
+        let rec = job.rec.clone();
+        let status = job.status(now);
+        drop(inner);
+        self.persist_job(&rec)?;
+        self.notify();
+        Ok(status)
+    }
+
     /// Registers (or re-registers after a restart) a worker. A worker coming back under the
     /// same name lost whatever it was rendering: its old leases are requeued at once instead
     /// of waiting out their deadlines.

@@ -62,6 +62,7 @@ async fn start(configure: impl FnOnce(&std::path::Path, &mut CoordinatorConfig))
         metrics_listener,
         coordinator.metrics().clone(),
         coordinator.scheduler().clone(),
+        None,
         async {
             let _ = metrics_stopped.await;
         },

@@ -1,0 +1,147 @@
+//! Who may see the dashboard: the coordinator's bearer token, typed once into the login page,
+//! buys a session. The session id lives only in an HTTP-only, SameSite=Strict cookie (Secure
+//! when the coordinator serves TLS); each session has its own CSRF token, which every form that
+//! changes something carries and every such request must echo.
+
+use std::collections::HashMap;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use axum::http::HeaderMap;
+use subtle::ConstantTimeEq;
+
+/// The cookie that holds the session id.
+pub const COOKIE: &str = "lightfarm_session";
+
+/// How long a session lasts without being used.
+const IDLE: Duration = Duration::from_secs(12 * 3600);
+
+#[derive(Clone, Debug)]
+pub struct Session {
+    pub csrf: String,
+    last_used: Instant,
+}
+
+/// Sessions in memory: a coordinator restart logs everyone out, which costs a login and
+/// keeps no secret on disk.
+pub struct Sessions {
+    token: Vec<u8>,
+    secure: bool,
+    live: Mutex<HashMap<String, Session>>,
+}
+
+/// 32 random bytes as hex; None when the operating system has no randomness to give.
+fn random_id() -> Option<String> {
+    let mut bytes = [0u8; 32];
+    getrandom::fill(&mut bytes).ok()?;
+    Some(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+impl Sessions {
+    pub fn new(token: &str, secure: bool) -> Sessions {
+        Sessions {
+            token: token.as_bytes().to_vec(),
+            secure,
+            live: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// Whether `given` is the coordinator's token (in constant time).
+    pub fn token_matches(&self, given: &str) -> bool {
+        !self.token.is_empty() && bool::from(self.token.as_slice().ct_eq(given.as_bytes()))
+    }
+
+    /// A new session and the `Set-Cookie` value that hands it to the browser.
+    pub fn open(&self) -> Option<(Session, String)> {
+        let (id, csrf) = (random_id()?, random_id()?);
+        let session = Session {
+            csrf,
+            last_used: Instant::now(),
+        };
+        let mut live = self.live.lock().unwrap_or_else(|p| p.into_inner());
+        live.retain(|_, s| s.last_used.elapsed() < IDLE);
+        live.insert(id.clone(), session.clone());
+        let secure = if self.secure { "; Secure" } else { "" };
+        Some((
+            session,
+            format!("{COOKIE}={id}; Path=/; HttpOnly; SameSite=Strict{secure}"),
+        ))
+    }
+
+    /// The session of a request's cookie, if it is live.
+    pub fn get(&self, headers: &HeaderMap) -> Option<Session> {
+        let id = cookie(headers)?;
+        let mut live = self.live.lock().unwrap_or_else(|p| p.into_inner());
+        let s = live.get_mut(&id)?;
+        if s.last_used.elapsed() >= IDLE {
+            live.remove(&id);
+            return None;
+        }
+        s.last_used = Instant::now();
+        Some(s.clone())
+    }
+
+    /// Ends the request's session; the `Set-Cookie` value that clears the cookie.
+    pub fn close(&self, headers: &HeaderMap) -> String {
+        if let Some(id) = cookie(headers) {
+            self.live
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .remove(&id);
+        }
+        format!("{COOKIE}=; Path=/; HttpOnly; SameSite=Strict; Max-Age=0")
+    }
+}
+
+impl Session {
+    /// Whether a form's CSRF field is this session's (in constant time).
+    pub fn csrf_matches(&self, given: &str) -> bool {
+        bool::from(self.csrf.as_bytes().ct_eq(given.as_bytes()))
+    }
+}
+
+/// The session id in the request's `Cookie` headers.
+fn cookie(headers: &HeaderMap) -> Option<String> {
+    headers
+        .get_all(axum::http::header::COOKIE)
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(';'))
+        .filter_map(|kv| kv.trim().split_once('='))
+        .find(|(k, _)| *k == COOKIE)
+        .map(|(_, v)| v.to_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_session_is_found_by_its_cookie_and_closed() {
+        let s = Sessions::new("tok", false);
+        assert!(s.token_matches("tok") && !s.token_matches("tok ") && !s.token_matches(""));
+        let (session, set) = s.open().expect("randomness");
+        assert!(set.contains("HttpOnly") && set.contains("SameSite=Strict"));
+        assert!(!set.contains("Secure"));
+        let id = set
+            .split(';')
+            .next()
+            .and_then(|kv| kv.split_once('='))
+            .map(|(_, v)| v.to_owned())
+            .expect("id");
+        let mut headers = HeaderMap::new();
+        headers.insert(
+            axum::http::header::COOKIE,
+            format!("other=1; {COOKIE}={id}").parse().expect("header"),
+        );
+        let got = s.get(&headers).expect("live");
+        assert!(got.csrf_matches(&session.csrf) && !got.csrf_matches("guess"));
+        s.close(&headers);
+        assert!(s.get(&headers).is_none());
+        assert!(Sessions::new("t", true)
+            .open()
+            .expect("id")
+            .1
+            .contains("; Secure"));
+    }
+}

@@ -1,0 +1,2 @@
+//! What the coordinator's test files share.
+pub mod browser;

@@ -1,0 +1,248 @@
+//! The web dashboard over HTTP, in process: nothing but /metrics without a session, a wrong
+//! token refused, a login that sets an HTTP-only cookie, the jobs page with a job whose name is
+//! markup (shown as text), actions that need the session's CSRF token and change the job, the
+//! polled JSON, and logout.
+
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use lightfarm_coordinator::dashboard::{DashboardConfig, COOKIE};
+use lightfarm_coordinator::scheduler::{RunState, Scheduler};
+use lightfarm_coordinator::{Coordinator, CoordinatorConfig};
+use lightfarm_scene::Catalog;
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+const TOKEN: &str = "dash-token";
+const HOSTILE: &str = "<script>document.title='pwned'</script><b>bold</b>";
+
+struct Reply {
+    status: u16,
+    headers: HashMap<String, String>,
+    body: String,
+}
+
+/// One HTTP/1.1 request; `form` is sent url-encoded as a POST.
+async fn request(
+    addr: SocketAddr,
+    path: &str,
+    cookie: Option<&str>,
+    form: Option<&[(&str, &str)]>,
+) -> Reply {
+    let mut s = tokio::net::TcpStream::connect(addr).await.expect("connect");
+    let cookie = cookie
+        .map(|c| format!("Cookie: {c}\r\n"))
+        .unwrap_or_default();
+    let req = match form {
+        Some(fields) => {
+            let body: String = fields
+                .iter()
+                .map(|(k, v)| format!("{k}={}", urlencode(v)))
+                .collect::<Vec<_>>()
+                .join("&");
+            format!(
+                "POST {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{cookie}Content-Type: \
+                 application/x-www-form-urlencoded\r\nContent-Length: {}\r\n\r\n{body}",
+                body.len()
+            )
+        }
+        None => format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n{cookie}\r\n"),
+    };
+    s.write_all(req.as_bytes()).await.expect("write");
+    let mut buf = String::new();
+    s.read_to_string(&mut buf).await.expect("read");
+    let (head, body) = buf.split_once("\r\n\r\n").expect("a response");
+    let mut lines = head.lines();
+    let status = lines
+        .next()
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|c| c.parse().ok())
+        .expect("status");
+    let headers = lines
+        .filter_map(|l| l.split_once(':'))
+        .map(|(k, v)| (k.trim().to_ascii_lowercase(), v.trim().to_owned()))
+        .collect();
+    Reply {
+        status,
+        headers,
+        body: body.to_owned(),
+    }
+}
+
+fn urlencode(v: &str) -> String {
+    v.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' => (b as char).to_string(),
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
+}
+
+/// The session's CSRF token, from a page's forms.
+fn csrf(page: &str) -> String {
+    let at = page
+        .find("name=\"csrf\" value=\"")
+        .expect("a form with a CSRF field")
+        + 19;
+    page[at..].split('"').next().expect("value").to_owned()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn login_jobs_actions_and_escaping() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let config = CoordinatorConfig::new(
+        dir.path().join("data"),
+        TOKEN.into(),
+        Catalog::builtin().expect("catalog"),
+    );
+    let coordinator = tokio::task::spawn_blocking(move || Coordinator::open(config))
+        .await
+        .expect("join")
+        .expect("open");
+    let scheduler: Arc<Scheduler> = coordinator.scheduler().clone();
+    let spec =
+        format!("name = {HOSTILE:?}\nseed = 1\ncount = 3\nwidth = 16\nheight = 16\nspp = 1\n");
+    let job = scheduler.submit(&spec, 0, 0.0).expect("submit").record.id;
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+        .await
+        .expect("bind");
+    let addr = listener.local_addr().expect("addr");
+    tokio::spawn(lightfarm_coordinator::metrics::serve_metrics(
+        listener,
+        coordinator.metrics().clone(),
+        scheduler.clone(),
+        Some(DashboardConfig {
+            token: TOKEN.into(),
+            secure_cookies: false,
+        }),
+        std::future::pending(),
+    ));
+
+    // Without a session: /metrics only.
+    assert_eq!(request(addr, "/metrics", None, None).await.status, 200);
+    for path in ["/", "/jobs/x"] {
+        let r = request(addr, path, None, None).await;
+        assert_eq!(
+            (r.status, r.headers.get("location").map(String::as_str)),
+            (303, Some("/login")),
+            "{path}"
+        );
+    }
+    assert_eq!(request(addr, "/api/jobs", None, None).await.status, 401);
+    let r = request(addr, "/jobs/x/cancel", None, Some(&[("csrf", "x")])).await;
+    assert_eq!(r.status, 303);
+
+    // A wrong token: refused, no cookie.
+    let r = request(addr, "/login", None, Some(&[("token", "guess")])).await;
+    assert_eq!(r.status, 401);
+    assert!(r.body.contains("not this coordinator") && !r.headers.contains_key("set-cookie"));
+
+    // The right one: an HTTP-only session cookie.
+    let r = request(addr, "/login", None, Some(&[("token", TOKEN)])).await;
+    assert_eq!(r.status, 303, "{}", r.body);
+    let set = r
+        .headers
+        .get("set-cookie")
+        .expect("a session cookie")
+        .clone();
+    assert!(
+        set.contains("HttpOnly") && set.contains("SameSite=Strict"),
+        "{set}"
+    );
+    let cookie = set.split(';').next().expect("name=value").to_owned();
+    assert!(cookie.starts_with(COOKIE));
+    let cookie = Some(cookie.as_str());
+
+    // The jobs page: the job, its progress, its name as text.
+    let page = request(addr, "/", cookie, None).await;
+    assert_eq!(page.status, 200);
+    assert!(
+        page.body.contains(&job) && page.body.contains("<progress max=\"3\" value=\"0\">"),
+        "{}",
+        page.body
+    );
+    assert!(
+        page.body.contains("&lt;script&gt;document.title="),
+        "{}",
+        page.body
+    );
+    assert!(!page.body.contains("<script>document") && !page.body.contains("<b>bold"));
+    let token = csrf(&page.body);
+
+    // Actions need the session's CSRF token.
+    let pause = format!("/jobs/{job}/pause");
+    let r = request(addr, &pause, cookie, Some(&[("csrf", "forged")])).await;
+    assert_eq!(r.status, 403);
+    assert_eq!(
+        scheduler.job(&job, 0.0).expect("job").record.run,
+        RunState::Running
+    );
+    let r = request(addr, &pause, cookie, Some(&[("csrf", &token)])).await;
+    assert_eq!(
+        (r.status, r.headers.get("location").cloned()),
+        (303, Some(format!("/jobs/{job}")))
+    );
+    assert_eq!(
+        scheduler.job(&job, 0.0).expect("job").record.run,
+        RunState::Paused
+    );
+    let page = request(addr, &format!("/jobs/{job}"), cookie, None).await;
+    assert!(
+        page.body.contains("data-field=\"state\">paused<"),
+        "{}",
+        page.body
+    );
+    assert!(page.body.contains("&lt;b&gt;bold") && page.body.contains("count = 3"));
+    let json = request(addr, "/api/jobs", cookie, None).await;
+    let rows: serde_json::Value = serde_json::from_str(&json.body).expect("json");
+    assert_eq!(rows[0]["state"], "paused");
+    assert_eq!(rows[0]["count"], 3);
+
+    let priority = format!("/jobs/{job}/priority");
+    let r = request(
+        addr,
+        &priority,
+        cookie,
+        Some(&[("csrf", &token), ("priority", "7")]),
+    )
+    .await;
+    assert_eq!(r.status, 303);
+    assert_eq!(scheduler.job(&job, 0.0).expect("job").record.priority, 7);
+    let r = request(
+        addr,
+        &priority,
+        cookie,
+        Some(&[("csrf", &token), ("priority", "<i>high</i>")]),
+    )
+    .await;
+    assert_eq!(r.status, 409);
+    assert!(
+        r.body.contains("&lt;i&gt;high") && r.body.contains("not a whole number"),
+        "{}",
+        r.body
+    );
+    let r = request(addr, "/jobs/nope/cancel", cookie, Some(&[("csrf", &token)])).await;
+    assert_eq!(r.status, 404);
+    assert!(r.body.contains("unknown job"), "{}", r.body);
+    let r = request(
+        addr,
+        &format!("/jobs/{job}/cancel"),
+        cookie,
+        Some(&[("csrf", &token)]),
+    )
+    .await;
+    assert_eq!(r.status, 303);
+    let r = request(
+        addr,
+        &format!("/jobs/{job}/resume"),
+        cookie,
+        Some(&[("csrf", &token)]),
+    )
+    .await;
+    assert_eq!(r.status, 409, "a cancelled job does not resume");
+
+    // Logout ends the session.
+    let r = request(addr, "/logout", cookie, Some(&[("csrf", &token)])).await;
+    assert_eq!(r.status, 303);
+    assert_eq!(request(addr, "/", cookie, None).await.status, 303);
+}
