@@ -489,23 +489,15 @@ impl Scheduler {
         run: RunState,
         now: f64,
     ) -> Result<JobStatus, CoordError> {
-        let mut inner = self.lock();
-        let job = inner
-            .jobs
-            .get_mut(job_id)
-            .ok_or_else(|| CoordError::UnknownJob(job_id.to_owned()))?;
-        if job.rec.run == RunState::Cancelled && run != RunState::Cancelled {
-            return Err(CoordError::Conflict(format!(
-                "job {job_id} was cancelled; submit the spec again to render it"
-            )));
-        }
-        job.rec.run = run;
-        let rec = job.rec.clone();
-        let status = job.status(now);
-        drop(inner);
-        self.persist_job(&rec)?;
-        self.notify();
-        Ok(status)
+        self.update_record(job_id, now, |rec| {
+            if rec.run == RunState::Cancelled && run != RunState::Cancelled {
+                return Err(CoordError::Conflict(format!(
+                    "job {job_id} was cancelled; submit the spec again to render it"
+                )));
+            }
+            rec.run = run;
+            Ok(())
+        })
     }
 
     /// Changes a job's priority (higher leases first), persisted like the rest of the job.
@@ -515,12 +507,25 @@ impl Scheduler {
         priority: i32,
         now: f64,
     ) -> Result<JobStatus, CoordError> {
+        self.update_record(job_id, now, |rec| {
+            rec.priority = priority;
+            Ok(())
+        })
+    }
+
+    /// Applies `change` to a job's record, persists it and tells the watchers.
+    fn update_record(
+        &self,
+        job_id: &str,
+        now: f64,
+        change: impl FnOnce(&mut JobRecord) -> Result<(), CoordError>,
+    ) -> Result<JobStatus, CoordError> {
         let mut inner = self.lock();
         let job = inner
             .jobs
             .get_mut(job_id)
             .ok_or_else(|| CoordError::UnknownJob(job_id.to_owned()))?;
-        job.rec.priority = priority;
+        change(&mut job.rec)?;
         let rec = job.rec.clone();
         let status = job.status(now);
         drop(inner);

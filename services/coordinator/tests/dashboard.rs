@@ -7,11 +7,11 @@ use std::collections::HashMap;
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use lightfarm_coordinator::dashboard::{DashboardConfig, COOKIE};
+use lightfarm_coordinator::dashboard::COOKIE;
 use lightfarm_coordinator::scheduler::{RunState, Scheduler};
-use lightfarm_coordinator::{Coordinator, CoordinatorConfig};
-use lightfarm_scene::Catalog;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+mod common;
 
 const TOKEN: &str = "dash-token";
 const HOSTILE: &str = "<script>document.title='pwned'</script><b>bold</b>";
@@ -90,33 +90,11 @@ fn csrf(page: &str) -> String {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn login_jobs_actions_and_escaping() {
     let dir = tempfile::tempdir().expect("tmp");
-    let config = CoordinatorConfig::new(
-        dir.path().join("data"),
-        TOKEN.into(),
-        Catalog::builtin().expect("catalog"),
-    );
-    let coordinator = tokio::task::spawn_blocking(move || Coordinator::open(config))
-        .await
-        .expect("join")
-        .expect("open");
+    let (coordinator, addr) = common::serve_dashboard(dir.path(), TOKEN).await;
     let scheduler: Arc<Scheduler> = coordinator.scheduler().clone();
     let spec =
         format!("name = {HOSTILE:?}\nseed = 1\ncount = 3\nwidth = 16\nheight = 16\nspp = 1\n");
     let job = scheduler.submit(&spec, 0, 0.0).expect("submit").record.id;
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
-        .await
-        .expect("bind");
-    let addr = listener.local_addr().expect("addr");
-    tokio::spawn(lightfarm_coordinator::metrics::serve_metrics(
-        listener,
-        coordinator.metrics().clone(),
-        scheduler.clone(),
-        Some(DashboardConfig {
-            token: TOKEN.into(),
-            secure_cookies: false,
-        }),
-        std::future::pending(),
-    ));
 
     // Without a session: /metrics only.
     assert_eq!(request(addr, "/metrics", None, None).await.status, 200);

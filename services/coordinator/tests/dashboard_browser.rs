@@ -9,10 +9,7 @@ mod common;
 use std::sync::Arc;
 
 use common::browser::{self, Browser};
-use lightfarm_coordinator::dashboard::DashboardConfig;
 use lightfarm_coordinator::scheduler::{RunState, Scheduler};
-use lightfarm_coordinator::{Coordinator, CoordinatorConfig};
-use lightfarm_scene::Catalog;
 
 const TOKEN: &str = "browser-token";
 const HOSTILE: &str = "<script>document.title='pwned'</script>portraits";
@@ -24,12 +21,8 @@ fn the_dashboard_in_chromium() {
     };
     let rt = tokio::runtime::Runtime::new().expect("runtime");
     let dir = tempfile::tempdir().expect("tmp");
-    let config = CoordinatorConfig::new(
-        dir.path().join("data"),
-        TOKEN.into(),
-        Catalog::builtin().expect("catalog"),
-    );
-    let coordinator = Coordinator::open(config).expect("open");
+    let (coordinator, addr) = rt.block_on(common::serve_dashboard(dir.path(), TOKEN));
+    let base = format!("http://{addr}");
     let scheduler: Arc<Scheduler> = coordinator.scheduler().clone();
     let quiet = scheduler
         .submit(
@@ -43,20 +36,6 @@ fn the_dashboard_in_chromium() {
     let spec =
         format!("name = {HOSTILE:?}\nseed = 1\ncount = 4\nwidth = 16\nheight = 16\nspp = 1\n");
     let job = scheduler.submit(&spec, 0, 0.0).expect("submit").record.id;
-    let listener = rt
-        .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
-        .expect("bind");
-    let base = format!("http://{}", listener.local_addr().expect("addr"));
-    rt.spawn(lightfarm_coordinator::metrics::serve_metrics(
-        listener,
-        coordinator.metrics().clone(),
-        scheduler.clone(),
-        Some(DashboardConfig {
-            token: TOKEN.into(),
-            secure_cookies: false,
-        }),
-        std::future::pending(),
-    ));
 
     let mut b = Browser::launch(&chromium);
     b.navigate(&format!("{base}/"));

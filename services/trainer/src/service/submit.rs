@@ -20,17 +20,7 @@ impl TrainerService {
     ) -> Result<pb::TrainJob, Status> {
         // `out` is the service's to set, and `dataset` is a name under its --datasets root:
         // taken from the request, else from the config a user also trains with locally.
-        let mut table: toml::Table = toml::from_str(&r.config_toml)
-            .map_err(|e| Status::invalid_argument(format!("config_toml: {e}")))?;
-        let from_config = table
-            .remove("dataset")
-            .and_then(|v| v.as_str().map(str::to_owned));
-        table.remove("out");
-        let named = if r.dataset.is_empty() {
-            from_config.unwrap_or_default()
-        } else {
-            r.dataset.clone()
-        };
+        let (table, named) = split_request(&r.config_toml, "dataset", &r.dataset, &["out"])?;
         let farm = FarmAddress::is_farm(&named);
         let dataset = if farm {
             FarmAddress::parse(&named).map_err(|e| Status::invalid_argument(e.to_string()))?;
@@ -38,11 +28,7 @@ impl TrainerService {
         } else {
             relative_dataset(&named)?
         };
-        table.insert("dataset".into(), "-".into());
-        table.insert("out".into(), "-".into());
-        let mut cfg: TrainConfig = table
-            .try_into()
-            .map_err(|e: toml::de::Error| Status::invalid_argument(format!("config_toml: {e}")))?;
+        let mut cfg: TrainConfig = with_placeholders(table, &["dataset", "out"])?;
         if !r.split.is_empty() {
             cfg.split = r.split;
         }
@@ -92,25 +78,9 @@ impl TrainerService {
     ) -> Result<pb::TrainJob, Status> {
         // `base`, `photos` and `out` are the service's to set: the base is a job of this
         // trainer, the photos a folder under its --datasets root.
-        let mut table: toml::Table = toml::from_str(&r.config_toml)
-            .map_err(|e| Status::invalid_argument(format!("config_toml: {e}")))?;
-        table.remove("base");
-        table.remove("out");
-        let from_config = table
-            .remove("photos")
-            .and_then(|v| v.as_str().map(str::to_owned));
-        let named = if r.photos.is_empty() {
-            from_config.unwrap_or_default()
-        } else {
-            r.photos.clone()
-        };
+        let (table, named) = split_request(&r.config_toml, "photos", &r.photos, &["base", "out"])?;
         let photos = under_datasets("photos", "a photo folder's", &named)?;
-        for key in ["base", "photos", "out"] {
-            table.insert(key.into(), "-".into());
-        }
-        let mut cfg: AdaptConfig = table
-            .try_into()
-            .map_err(|e: toml::de::Error| Status::invalid_argument(format!("config_toml: {e}")))?;
+        let mut cfg: AdaptConfig = with_placeholders(table, &["base", "photos", "out"])?;
         if r.steps > 0 {
             cfg.steps = r.steps;
         }
@@ -223,6 +193,43 @@ impl TrainerService {
             .map_err(internal)?;
         Ok(pb_job)
     }
+}
+
+/// A request's config TOML without the keys the service sets (`service_keys`, and `key`), and
+/// the folder the job works on: the request's `requested`, else the config's `key`.
+fn split_request(
+    config_toml: &str,
+    key: &str,
+    requested: &str,
+    service_keys: &[&str],
+) -> Result<(toml::Table, String), Status> {
+    let mut table: toml::Table = toml::from_str(config_toml)
+        .map_err(|e| Status::invalid_argument(format!("config_toml: {e}")))?;
+    let from_config = table
+        .remove(key)
+        .and_then(|v| v.as_str().map(str::to_owned));
+    for k in service_keys {
+        table.remove(*k);
+    }
+    let named = if requested.is_empty() {
+        from_config.unwrap_or_default()
+    } else {
+        requested.to_owned()
+    };
+    Ok((table, named))
+}
+
+/// The config, with placeholders for the required keys the service fills in when the job runs.
+fn with_placeholders<T: serde::de::DeserializeOwned>(
+    mut table: toml::Table,
+    keys: &[&str],
+) -> Result<T, Status> {
+    for k in keys {
+        table.insert((*k).into(), "-".into());
+    }
+    table
+        .try_into()
+        .map_err(|e: toml::de::Error| Status::invalid_argument(format!("config_toml: {e}")))
 }
 
 /// A dataset (or weights) path must stay inside the datasets root.
