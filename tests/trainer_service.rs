@@ -1,7 +1,7 @@
 //! The trainer service as a real process: `lightfarm serve trainer` killed with SIGKILL mid-job
 //! resumes the job from its newest checkpoint, cancels on request, and serves
 //! `lightfarm train --trainer` and `lightfarm adapt --trainer` (followed through a SIGKILL of
-//! the trainer).
+//! the trainer); and the coordinator's dashboard shows a trainer's jobs, curves and relights.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -266,4 +266,217 @@ fn the_trainer_service_resumes_a_job_after_sigkill() {
         (1..=steps.len() as u64).collect::<Vec<_>>(),
         "one line per step across the kill"
     );
+}
+
+/// One HTTP/1.1 exchange with the dashboard; the status, the headers' text and the body bytes.
+fn http(addr: &str, req: &str) -> (u16, String, Vec<u8>) {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).expect("connect to the dashboard");
+    s.set_read_timeout(Some(Duration::from_secs(300)))
+        .expect("timeout");
+    s.write_all(req.as_bytes()).expect("write");
+    let mut buf = Vec::new();
+    s.read_to_end(&mut buf).expect("read");
+    let at = buf
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .expect("a response");
+    let head = String::from_utf8_lossy(&buf[..at]).into_owned();
+    let status = head
+        .split_whitespace()
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .expect("status");
+    (status, head, buf[at + 4..].to_vec())
+}
+
+fn get(addr: &str, path: &str, cookie: &str) -> (u16, String, Vec<u8>) {
+    http(
+        addr,
+        &format!("GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\nCookie: {cookie}\r\n\r\n"),
+    )
+}
+
+/// `lightfarm serve coordinator --trainer URL`: the dashboard's trainer pages show a train job
+/// on the farm's own samples (`farm://`), its loss curves as SVG, and a committed sample
+/// relit by the job's newest checkpoint (a PNG of the sample's size).
+#[test]
+fn the_dashboard_shows_the_trainer_jobs_curves_and_relit_samples() {
+    use lightfarm_proto::v1 as pb;
+    let tmp = tempfile::tempdir().expect("tmp");
+    let port = || {
+        std::net::TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .map(|a| a.port())
+            .expect("port")
+    };
+    let (grpc, web, trainer) = (port(), port(), port());
+    let spawn = |args: &[&str]| {
+        bin()
+            .args(args)
+            .args(["--token", "t0k"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn lightfarm")
+    };
+    let data = |d: &str| tmp.path().join(d).to_str().expect("utf8").to_owned();
+    let mut coordinator = spawn(&[
+        "serve",
+        "coordinator",
+        "--data",
+        &data("coordinator"),
+        "--listen",
+        &format!("127.0.0.1:{grpc}"),
+        "--metrics-listen",
+        &format!("127.0.0.1:{web}"),
+        "--trainer",
+        &format!("http://127.0.0.1:{trainer}"),
+    ]);
+    let mut trainer_proc = spawn(&[
+        "serve",
+        "trainer",
+        "--data",
+        &data("trainer"),
+        "--listen",
+        &format!("127.0.0.1:{trainer}"),
+        "--datasets",
+        &data("."),
+        "--coordinator-token",
+        "t0k",
+    ]);
+    let rt = tokio::runtime::Runtime::new().expect("runtime");
+    let channel = |port: u16| {
+        let _in = rt.enter();
+        lightfarm_proto::client::channel(&format!("http://127.0.0.1:{port}"), "t0k", None)
+            .expect("channel")
+    };
+    let retry = |what: &str, f: &mut dyn FnMut() -> bool| {
+        let started = Instant::now();
+        while !f() {
+            assert!(
+                started.elapsed() < Duration::from_secs(600),
+                "waited 10 min for {what}"
+            );
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    };
+    let (ch, auth) = channel(grpc);
+    let mut jobs = pb::jobs_client::JobsClient::with_interceptor(ch, auth);
+    let mut job = None;
+    retry("the coordinator", &mut || {
+        job = rt
+            .block_on(
+                jobs.submit_dataset(pb::SubmitDatasetRequest {
+                    spec: Some(pb::submit_dataset_request::Spec::Toml(
+                        "name = \"relit\"\nseed = 5\ncount = 2\nwidth = 16\nheight = 16\nspp = 1\n"
+                            .into(),
+                    )),
+                    priority: 0,
+                }),
+            )
+            .ok()
+            .map(|j| j.into_inner().id);
+        job.is_some()
+    });
+    let job = job.expect("submitted");
+    let worker = bin()
+        .args(["serve", "worker", "--coordinator"])
+        .arg(format!("http://127.0.0.1:{grpc}"))
+        .args([
+            "--token",
+            "t0k",
+            "--name",
+            "w",
+            "--max-samples",
+            "2",
+            "--cache",
+        ])
+        .arg(data("worker"))
+        .output()
+        .expect("worker");
+    assert!(
+        worker.status.success(),
+        "{}",
+        String::from_utf8_lossy(&worker.stderr)
+    );
+
+    let (ch, auth) = channel(trainer);
+    let mut tc = pb::trainer_client::TrainerClient::with_interceptor(ch, auth);
+    let mut train = None;
+    retry("the trainer", &mut || {
+        let submitted = rt.block_on(tc.submit_train_job(pb::SubmitTrainJobRequest {
+                config_toml: "crop = 16\ncheckpoint_every = 1\nloader_threads = 1\n\
+                              vgg_weights = \"none\"\n[net]\nwidths = [8, 16, 32]\ncritic_width = 8\n"
+                    .into(),
+                dataset: format!("farm://127.0.0.1:{grpc}/{job}"),
+                split: "all".into(),
+                steps: 2,
+                batch: 1,
+            }));
+        match submitted {
+            Ok(j) => train = Some(j.into_inner().id),
+            Err(s) if lightfarm_proto::client::transient(&s) => {}
+            Err(s) => panic!("submitting the train job: {s}"),
+        }
+        train.is_some()
+    });
+    let train = train.expect("train job");
+    retry("the train job to complete", &mut || {
+        let listed = rt
+            .block_on(tc.list_train_jobs(pb::ListTrainJobsRequest {}))
+            .expect("list")
+            .into_inner()
+            .jobs;
+        let j = listed.iter().find(|j| j.id == train).expect("listed");
+        assert_ne!(j.state, pb::TrainJobState::Failed as i32, "{}", j.error);
+        j.state == pb::TrainJobState::Completed as i32
+    });
+
+    let addr = format!("127.0.0.1:{web}");
+    let (status, head, _) = http(
+        &addr,
+        "POST /login HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Type: \
+         application/x-www-form-urlencoded\r\nContent-Length: 9\r\n\r\ntoken=t0k",
+    );
+    assert_eq!(status, 303, "{head}");
+    let cookie = head
+        .lines()
+        .find_map(|l| l.strip_prefix("set-cookie: "))
+        .and_then(|c| c.split(';').next())
+        .expect("a session cookie")
+        .to_owned();
+    let (status, _, body) = get(&addr, "/trainer", &cookie);
+    let page = String::from_utf8_lossy(&body);
+    assert_eq!(status, 200);
+    assert!(
+        page.contains(&format!("/trainer/{train}")) && page.contains(">completed<"),
+        "{page}"
+    );
+    let (status, _, body) = get(&addr, &format!("/trainer/{train}"), &cookie);
+    let page = String::from_utf8_lossy(&body);
+    assert_eq!(status, 200);
+    assert!(
+        page.contains("<svg") && page.contains("data-term=\"total\""),
+        "{page}"
+    );
+    let relit = format!("/trainer/{train}/relit/{job}/0");
+    assert!(page.contains(&relit), "{page}");
+    let (status, head, png) = get(&addr, &relit, &cookie);
+    assert_eq!(status, 200, "{head} {}", String::from_utf8_lossy(&png));
+    assert!(png.starts_with(b"\x89PNG\r\n\x1a\n"), "{head}");
+    let size = |at: usize| u32::from_be_bytes([png[at], png[at + 1], png[at + 2], png[at + 3]]);
+    assert_eq!((size(16), size(20)), (16, 16), "the sample's size");
+    // The trainer gone: the page says so instead of failing.
+    trainer_proc.kill().expect("kill trainer");
+    let _ = trainer_proc.wait();
+    let (status, _, body) = get(&addr, "/trainer/table", &cookie);
+    assert_eq!(status, 200);
+    assert!(
+        String::from_utf8_lossy(&body).contains("did not answer"),
+        "{}",
+        String::from_utf8_lossy(&body)
+    );
+    coordinator.kill().expect("kill coordinator");
+    let _ = coordinator.wait();
 }

@@ -40,6 +40,15 @@ pub struct DemoArgs {
     /// Where the networks train: auto, cpu or gpu.
     #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE", default_value = "auto")]
     train_device: String,
+    /// Serve the farm's web dashboard here while the demo renders ("off": do not).
+    #[arg(long, default_value = "127.0.0.1:0")]
+    dashboard: String,
+    /// Keep the dashboard up this many seconds after the render (to look around).
+    #[arg(long, default_value_t = 0)]
+    dashboard_linger: u64,
+    /// The dashboard's login token (default: a new one per run, printed).
+    #[arg(long, env = "LIGHTFARM_DEMO_TOKEN", hide_env_values = true)]
+    token: Option<String>,
 }
 
 fn spec(a: &DemoArgs) -> String {
@@ -111,7 +120,10 @@ async fn demo(a: &DemoArgs) -> Result<()> {
     if data.exists() {
         std::fs::remove_dir_all(&data).with_context(|| format!("clearing {}", data.display()))?;
     }
-    let token = format!("demo-{}", std::process::id());
+    let token = a
+        .token
+        .clone()
+        .unwrap_or_else(|| format!("demo-{}", std::process::id()));
     let config = lightfarm_coordinator::CoordinatorConfig::new(
         data.clone(),
         token.clone(),
@@ -123,6 +135,33 @@ async fn demo(a: &DemoArgs) -> Result<()> {
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
     let addr = format!("http://{}", listener.local_addr()?);
     let (server_stop_tx, mut server_stop) = tokio::sync::watch::channel(false);
+    let dashboard = if a.dashboard == "off" {
+        None
+    } else {
+        let web = tokio::net::TcpListener::bind(&a.dashboard)
+            .await
+            .with_context(|| format!("--dashboard {}: cannot bind", a.dashboard))?;
+        eprintln!(
+            "demo: dashboard on http://{} (log in with the token {token})",
+            web.local_addr()?
+        );
+        let board = coordinator.dashboard(&lightfarm_coordinator::dashboard::DashboardConfig {
+            token: token.clone(),
+            secure_cookies: false,
+            trainer: None,
+        })?;
+        let mut stop = server_stop.clone();
+        Some(tokio::spawn(lightfarm_coordinator::metrics::serve_metrics(
+            web,
+            coordinator.metrics().clone(),
+            coordinator.scheduler().clone(),
+            Some(board),
+            None,
+            async move {
+                let _ = stop.wait_for(|s| *s).await;
+            },
+        )))
+    };
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
     let server = tokio::spawn(coordinator.serve(listener, async move {
         let _ = server_stop.wait_for(|s| *s).await;
@@ -255,8 +294,21 @@ async fn demo(a: &DemoArgs) -> Result<()> {
         sheet.row(row as u32, &caption, &tiles(&output_from_exr(bytes)?));
     }
     let report = writer.finish()?;
+    if dashboard.is_some() && a.dashboard_linger > 0 {
+        eprintln!(
+            "demo: the dashboard stays up {} s more (Ctrl-C ends it)",
+            a.dashboard_linger
+        );
+        tokio::select! {
+            _ = tokio::time::sleep(Duration::from_secs(a.dashboard_linger)) => {}
+            _ = crate::farm_cmd::shutdown_signal() => {}
+        }
+    }
     let _ = server_stop_tx.send(true);
     let _ = server.await;
+    if let Some(d) = dashboard {
+        let _ = d.await;
+    }
     let sheet_path = a.out.join("sheet.png");
     image::RgbImage::from_raw(sheet.width, sheet.height, sheet.pixels)
         .context("sheet size")?

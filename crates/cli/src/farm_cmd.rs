@@ -72,7 +72,8 @@ pub struct CoordinatorArgs {
     #[arg(long, env = "LIGHTFARM_LISTEN", default_value = "0.0.0.0:7070")]
     pub listen: String,
     /// Prometheus endpoint (GET /metrics, open) and the web dashboard (`/`, behind a login
-    /// with --token); "off" to disable both.
+    /// with --token), HTTPS with the gRPC certificate when --tls-cert is given; "off" to
+    /// disable both.
     #[arg(long, env = "LIGHTFARM_METRICS_LISTEN", default_value = "0.0.0.0:9090")]
     pub metrics_listen: String,
     /// Serve the web dashboard on the metrics port.
@@ -92,6 +93,15 @@ pub struct CoordinatorArgs {
     pub tls_cert: Option<PathBuf>,
     #[arg(long, requires = "tls_cert")]
     pub tls_key: Option<PathBuf>,
+    /// The trainer service the dashboard shows (jobs, loss curves, validation relights).
+    #[arg(long, env = "LIGHTFARM_TRAINER")]
+    pub trainer: Option<String>,
+    /// The trainer's bearer token (default: this coordinator's --token).
+    #[arg(long, env = "LIGHTFARM_TRAINER_TOKEN", hide_env_values = true)]
+    pub trainer_token: Option<String>,
+    /// CA certificate (PEM) of a TLS trainer.
+    #[arg(long, env = "LIGHTFARM_TRAINER_CA")]
+    pub trainer_ca: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -251,39 +261,50 @@ async fn serve_coordinator(a: CoordinatorArgs) -> Result<()> {
             coordinator.metrics().clone(),
             coordinator.scheduler().clone(),
         );
+        let trainer = a
+            .trainer
+            .clone()
+            .map(|url| lightfarm_coordinator::dashboard::TrainerLink {
+                url,
+                token: a.trainer_token.clone().unwrap_or_else(|| a.token.clone()),
+                tls_ca: a.trainer_ca.clone(),
+            });
         let board = a
             .dashboard
-            .then(|| lightfarm_coordinator::dashboard::DashboardConfig {
-                token: a.token.clone(),
-                // The metrics port is plain HTTP: a Secure cookie would never come back.
-                secure_cookies: false,
-            });
-        if board.is_some() && a.tls_cert.is_some() {
-            tracing::warn!(
-                "the dashboard on {} is plain HTTP although gRPC is TLS: reach it through an \
-                 SSH tunnel or a TLS proxy, or pass --dashboard false",
-                a.metrics_listen
-            );
-        }
+            .then(|| {
+                coordinator.dashboard(&lightfarm_coordinator::dashboard::DashboardConfig {
+                    token: a.token.clone(),
+                    // With TLS the port is HTTPS; the session cookie only ever travels over it.
+                    secure_cookies: a.tls_cert.is_some(),
+                    trainer,
+                })
+            })
+            .transpose()?;
+        let tls = coordinator.metrics_tls()?;
         let mut rx = stop_rx.clone();
         tokio::spawn(async move {
             let stop = async move {
                 let _ = rx.changed().await;
             };
             if let Err(e) =
-                lightfarm_coordinator::metrics::serve_metrics(ml, m, s, board, stop).await
+                lightfarm_coordinator::metrics::serve_metrics(ml, m, s, board, tls, stop).await
             {
                 tracing::error!("metrics endpoint: {e}");
             }
         });
     }
     eprintln!(
-        "coordinator: gRPC on {} (data {}), metrics and dashboard on {}",
+        "coordinator: gRPC on {} (data {}), metrics and dashboard on {}{}",
         listener
             .local_addr()
             .map(|a| a.to_string())
             .unwrap_or_default(),
         a.data.display(),
+        if a.tls_cert.is_some() {
+            "https://"
+        } else {
+            "http://"
+        },
         a.metrics_listen
     );
     let shutdown = async move {

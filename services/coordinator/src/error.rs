@@ -6,6 +6,9 @@ use tonic::{Code, Status};
 pub enum CoordError {
     #[error("unknown job `{0}`: list jobs with `lightfarm jobs`")]
     UnknownJob(String),
+    /// Something other than a job that does not exist (a sample not committed yet).
+    #[error("{0}")]
+    NotFound(String),
     #[error("bad dataset spec: {0}")]
     BadSpec(String),
     #[error("{0}")]
@@ -27,7 +30,7 @@ pub enum CoordError {
 impl From<CoordError> for Status {
     fn from(e: CoordError) -> Status {
         let code = match &e {
-            CoordError::UnknownJob(_) => Code::NotFound,
+            CoordError::UnknownJob(_) | CoordError::NotFound(_) => Code::NotFound,
             CoordError::BadSpec(_) | CoordError::Invalid(_) | CoordError::Corrupt(_) => {
                 Code::InvalidArgument
             }

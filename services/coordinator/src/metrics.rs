@@ -137,16 +137,17 @@ impl Default for Metrics {
 }
 
 /// Serves `GET /metrics` on `listener` until `shutdown` resolves, and with `dashboard` the web
-/// dashboard (see [`crate::dashboard`]) on the same port. The samples/s rate is the derivative
-/// of `lightfarm_samples_committed_total` (Prometheus `rate()`).
+/// dashboard's routes ([`crate::Coordinator::dashboard`]) on the same port; over HTTPS with
+/// `tls` (the coordinator's certificate and key). The samples/s rate is the derivative of
+/// `lightfarm_samples_committed_total` (Prometheus `rate()`).
 pub async fn serve_metrics(
     listener: tokio::net::TcpListener,
     metrics: Arc<Metrics>,
     scheduler: Arc<Scheduler>,
-    dashboard: Option<crate::dashboard::DashboardConfig>,
+    dashboard: Option<axum::Router>,
+    tls: Option<tokio_rustls::rustls::ServerConfig>,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
-    let board = dashboard.map(|cfg| crate::dashboard::router(scheduler.clone(), &cfg));
     let mut app = axum::Router::new().route(
         "/metrics",
         axum::routing::get(move || {
@@ -154,10 +155,20 @@ pub async fn serve_metrics(
             async move { m.render(&s) }
         }),
     );
-    if let Some(board) = board {
+    if let Some(board) = dashboard {
         app = app.merge(board);
     }
-    axum::serve(listener, app)
-        .with_graceful_shutdown(shutdown)
-        .await
+    match tls {
+        Some(config) => {
+            let listener = crate::tls_listener::TlsListener::new(listener, config)?;
+            axum::serve(listener, app)
+                .with_graceful_shutdown(shutdown)
+                .await
+        }
+        None => {
+            axum::serve(listener, app)
+                .with_graceful_shutdown(shutdown)
+                .await
+        }
+    }
 }

@@ -11,6 +11,8 @@ use lightfarm_scene::Catalog;
 use lightfarm_store::{BlobStore, DiskBlobStore, SampleIndex, TieredBlobStore, DEFAULT_INLINE_MAX};
 use tonic::transport::Server;
 
+use crate::dashboard::preview::Previews;
+use crate::dashboard::DashboardConfig;
 use crate::durability::GroupSync;
 use crate::error::CoordError;
 use crate::metrics::Metrics;
@@ -50,6 +52,7 @@ impl CoordinatorConfig {
 /// An opened coordinator, ready to serve.
 pub struct Coordinator {
     shared: Arc<Shared>,
+    data_dir: PathBuf,
     token: String,
     tls: Option<(PathBuf, PathBuf)>,
     /// The group-sync queue and the db it flushes; the flusher task starts in `serve`.
@@ -135,6 +138,7 @@ impl Coordinator {
         });
         Ok(Coordinator {
             shared,
+            data_dir: config.data_dir,
             token: config.token,
             tls: config.tls,
             sync: (sync_rx, db),
@@ -147,6 +151,21 @@ impl Coordinator {
 
     pub fn metrics(&self) -> &Arc<Metrics> {
         &self.shared.metrics
+    }
+
+    /// The web dashboard's routes, for [`crate::metrics::serve_metrics`]; its previews are
+    /// cached under the data directory's `previews/`.
+    pub fn dashboard(&self, cfg: &DashboardConfig) -> Result<axum::Router, CoordError> {
+        let previews = Previews::new(self.shared.blobs.clone(), self.data_dir.join("previews"));
+        crate::dashboard::router(self.shared.scheduler.clone(), previews, cfg)
+    }
+
+    /// The HTTPS configuration of the metrics port: the gRPC certificate and key, if any.
+    pub fn metrics_tls(&self) -> Result<Option<tokio_rustls::rustls::ServerConfig>, CoordError> {
+        self.tls
+            .as_ref()
+            .map(|(cert, key)| crate::tls_listener::server_config(cert, key))
+            .transpose()
     }
 
     /// Serves gRPC on `listener` until `shutdown` resolves, expiring leases in the background.

@@ -27,6 +27,8 @@ struct Running {
     addr: String,
     port: u16,
     metrics_addr: std::net::SocketAddr,
+    /// Holds the sled db open: take it and drop it before the data directory is reopened.
+    scheduler: Option<std::sync::Arc<lightfarm_coordinator::scheduler::Scheduler>>,
     stop: Option<tokio::sync::oneshot::Sender<()>>,
     handle: tokio::task::JoinHandle<()>,
     dir: tempfile::TempDir,
@@ -58,11 +60,21 @@ async fn start(configure: impl FnOnce(&std::path::Path, &mut CoordinatorConfig))
     // /metrics stops with the gRPC server: its handle on the scheduler keeps the sled db (and
     // its lock) open, and a test reopens the data directory after `handle` finishes.
     let (metrics_stop, metrics_stopped) = tokio::sync::oneshot::channel::<()>();
+    let board = coordinator
+        .dashboard(&lightfarm_coordinator::dashboard::DashboardConfig {
+            token: TOKEN.into(),
+            secure_cookies: false,
+            trainer: None,
+        })
+        .expect("dashboard");
+    let tls = coordinator.metrics_tls().expect("metrics TLS");
+    let scheduler = coordinator.scheduler().clone();
     let metrics_server = tokio::spawn(lightfarm_coordinator::metrics::serve_metrics(
         metrics_listener,
         coordinator.metrics().clone(),
         coordinator.scheduler().clone(),
-        None,
+        Some(board),
+        tls,
         async {
             let _ = metrics_stopped.await;
         },
@@ -85,6 +97,7 @@ async fn start(configure: impl FnOnce(&std::path::Path, &mut CoordinatorConfig))
         addr,
         port,
         metrics_addr,
+        scheduler: Some(scheduler),
         stop: Some(tx),
         handle,
         dir,
@@ -280,6 +293,22 @@ async fn a_dataset_renders_commits_once_and_exports() {
     for w in workers {
         w.await.expect("join").expect("worker");
     }
+    // Both workers said goodbye on the way out; between them they rendered every sample.
+    let seen = c
+        .scheduler
+        .take()
+        .expect("scheduler")
+        .workers(lightfarm_coordinator::service::now_unix());
+    let names: Vec<(&str, &str)> = seen
+        .iter()
+        .map(|w| (w.name.as_str(), w.state.as_str()))
+        .collect();
+    assert_eq!(names, [("wa", "stopped"), ("wb", "stopped")]);
+    assert_eq!(seen.iter().map(|w| w.rendered).sum::<u64>(), 6);
+    assert!(
+        seen.iter().all(|w| !w.device.is_empty() && w.failures == 0),
+        "{seen:?}"
+    );
 
     // Every index committed exactly once.
     let list = samples
@@ -615,6 +644,62 @@ async fn tls_serves_clients_that_trust_the_certificate() {
         "plain text is refused"
     );
 
+    // The metrics port (and with it the dashboard) is HTTPS with the same certificate.
+    let page = https_get(c.metrics_addr.port(), "/login", &cert_path).await;
+    assert!(
+        page.starts_with("HTTP/1.1 200") && page.contains("name=\"token\""),
+        "{page}"
+    );
+    let mut plain = tokio::net::TcpStream::connect(c.metrics_addr)
+        .await
+        .expect("connect");
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let _ = plain
+        .write_all(b"GET /login HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+        .await;
+    let mut said = Vec::new();
+    let _ = plain.read_to_end(&mut said).await;
+    assert!(
+        !said.starts_with(b"HTTP/1.1 200"),
+        "plain HTTP gets no page: {}",
+        String::from_utf8_lossy(&said)
+    );
+
     let _ = c.stop.take().map(|s| s.send(()));
     c.handle.await.expect("server");
+}
+
+/// A GET over TLS to localhost:`port`, trusting the PEM certificate at `ca`.
+async fn https_get(port: u16, path: &str, ca: &std::path::Path) -> String {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    use tokio_rustls::rustls;
+    use tokio_rustls::rustls::pki_types::pem::PemObject;
+    let mut roots = rustls::RootCertStore::empty();
+    for cert in rustls::pki_types::CertificateDer::pem_file_iter(ca).expect("pem") {
+        roots.add(cert.expect("cert")).expect("root");
+    }
+    let config = rustls::ClientConfig::builder_with_provider(std::sync::Arc::new(
+        rustls::crypto::ring::default_provider(),
+    ))
+    .with_safe_default_protocol_versions()
+    .expect("versions")
+    .with_root_certificates(roots)
+    .with_no_client_auth();
+    let tcp = tokio::net::TcpStream::connect(("127.0.0.1", port))
+        .await
+        .expect("connect");
+    let name = rustls::pki_types::ServerName::try_from("localhost").expect("name");
+    let mut tls = tokio_rustls::TlsConnector::from(std::sync::Arc::new(config))
+        .connect(name, tcp)
+        .await
+        .expect("TLS handshake with the dashboard");
+    tls.write_all(
+        format!("GET {path} HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n").as_bytes(),
+    )
+    .await
+    .expect("write");
+    let mut buf = Vec::new();
+    // A server may close without TLS close_notify; what arrived is the page.
+    let _ = tls.read_to_end(&mut buf).await;
+    String::from_utf8_lossy(&buf).into_owned()
 }

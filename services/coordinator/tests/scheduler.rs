@@ -1,7 +1,9 @@
 //! The coordinator's state machine without the network: leases, expiry, fencing, failures,
 //! blocklists, locality, priorities, pause/cancel, and recovery after a restart.
 
-use lightfarm_coordinator::scheduler::{RunState, Scheduler, UploadCheck, BLOCKLIST_AFTER};
+use lightfarm_coordinator::scheduler::{
+    RunState, Scheduler, UploadCheck, WorkerHello, WorkerState, BLOCKLIST_AFTER,
+};
 use lightfarm_scene::Catalog;
 use lightfarm_store::SampleIndex;
 
@@ -39,11 +41,23 @@ fn open(dir: &std::path::Path) -> (sled::Db, Scheduler) {
 }
 
 fn commit(s: &Scheduler, job: &str, index: u64, now: f64) {
+    commit_by(s, "uploader", job, index, now);
+}
+
+fn commit_by(s: &Scheduler, worker: &str, job: &str, index: u64, now: f64) {
     let fake = format!("{:064x}", index + 1);
     s.samples()
         .commit(job, index, "train", &fake, 1, "{}", now)
         .expect("commit");
-    s.mark_done(job, index, now).expect("mark done");
+    s.mark_done(job, index, worker, now).expect("mark done");
+}
+
+fn hello(name: &str) -> WorkerHello {
+    WorkerHello {
+        name: name.into(),
+        device: "llvmpipe (cpu)".into(),
+        ..WorkerHello::default()
+    }
 }
 
 #[test]
@@ -297,13 +311,64 @@ fn a_restarted_worker_gets_its_abandoned_leases_requeued_at_once() {
     let dir = tempfile::tempdir().expect("tmp");
     let (_db, s) = open(dir.path());
     let job = s.submit(SPEC, 0, 0.0).expect("submit").record.id;
-    s.register_worker("w5", vec![]).expect("register");
+    s.register_worker(hello("w5"), 0.0).expect("register");
     s.lease("w5", 2, None, 0.0).expect("lease");
     s.lease("w6", 1, None, 0.0).expect("lease");
     assert_eq!(s.job(&job, 0.0).expect("job").leased, 3);
     // w5 was killed and comes back under its name: no waiting for its deadlines.
-    s.register_worker("w5", vec![]).expect("re-register");
+    s.register_worker(hello("w5"), 1.0).expect("re-register");
     let st = s.job(&job, 1.0).expect("job");
     assert_eq!((st.leased, st.queued), (1, 19), "only w6's lease is left");
-    assert!(s.register_worker("", vec![]).is_err());
+    assert!(s.register_worker(hello(""), 1.0).is_err());
+}
+
+#[test]
+fn workers_show_what_they_do_and_keep_their_counts_across_a_restart() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let state = |s: &Scheduler, name: &str, now: f64| {
+        s.workers(now)
+            .into_iter()
+            .find(|w| w.name == name)
+            .unwrap_or_else(|| panic!("worker {name} is listed"))
+    };
+    let job = {
+        let (_db, s) = open(dir.path());
+        let job = s.submit(SPEC, 0, 0.0).expect("submit").record.id;
+        s.register_worker(hello("gpu-a"), 0.0).expect("register");
+        assert_eq!(state(&s, "gpu-a", 0.0).state, WorkerState::Idle);
+        assert_eq!(state(&s, "gpu-a", 0.0).device, "llvmpipe (cpu)");
+        let t = s.lease("gpu-a", 1, None, 1.0).expect("lease");
+        let w = state(&s, "gpu-a", 1.0);
+        assert_eq!(w.state, WorkerState::Rendering);
+        assert_eq!(w.rendering, vec![(job.clone(), t[0].index)]);
+        commit_by(&s, "gpu-a", &job, t[0].index, 2.0);
+        let t = s.lease("gpu-a", 1, None, 3.0).expect("lease");
+        s.fail("gpu-a", &t[0].lease_id, "driver lost", 3.0)
+            .expect("fail");
+        let w = state(&s, "gpu-a", 3.0);
+        assert_eq!((w.state, w.rendered, w.failures), (WorkerState::Idle, 1, 1));
+        // Silent for longer than a lease (30 s here): lost.
+        assert_eq!(state(&s, "gpu-a", 40.0).state, WorkerState::Lost);
+        // A shutdown while rendering: draining, then stopped once it holds nothing.
+        let t = s.lease("gpu-a", 1, None, 41.0).expect("lease");
+        s.worker_draining("gpu-a", 42.0);
+        assert_eq!(state(&s, "gpu-a", 42.0).state, WorkerState::Draining);
+        commit_by(&s, "gpu-a", &job, t[0].index, 43.0);
+        assert_eq!(state(&s, "gpu-a", 43.0).state, WorkerState::Stopped);
+        assert_eq!(state(&s, "gpu-a", 400.0).state, WorkerState::Stopped);
+        job
+    };
+    let (_db, s) = open(dir.path());
+    let w = state(&s, "gpu-a", 500.0);
+    assert_eq!(
+        (w.state, w.rendered, w.failures, w.last_seen_unix),
+        (WorkerState::Lost, 2, 1, None),
+        "counts and device persist; not heard from since the restart"
+    );
+    assert_eq!(w.device, "llvmpipe (cpu)");
+    s.lease("gpu-a", 1, None, 501.0).expect("lease");
+    let w = state(&s, "gpu-a", 501.0);
+    assert_eq!(w.state, WorkerState::Rendering);
+    assert_eq!(w.rendering[0].0, job);
+    assert!(w.blocklisted_in.is_empty());
 }

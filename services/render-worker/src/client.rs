@@ -127,9 +127,11 @@ impl Client {
             .unwrap_or_default())
     }
 
-    /// One heartbeat (no retry: the next one follows soon); returns the lost leases.
+    /// One heartbeat (no retry: the next one follows soon); returns the lost leases. After a
+    /// shutdown request it says the worker is draining.
     pub async fn heartbeat(&self, worker: &str, leases: &[String]) -> Result<Vec<String>> {
         let req = pb::HeartbeatRequest {
+            draining: *self.stop.borrow(),
             worker_id: worker.to_string(),
             leases: leases
                 .iter()
@@ -146,6 +148,18 @@ impl Client {
             .await?
             .into_inner()
             .lost_leases)
+    }
+
+    /// Tells the coordinator this worker is leaving (best effort: it is going either way).
+    pub async fn leaving(&self, worker: &str) {
+        let req = pb::HeartbeatRequest {
+            worker_id: worker.to_string(),
+            leases: Vec::new(),
+            draining: true,
+        };
+        if let Err(e) = self.inner.clone().heartbeat(req).await {
+            tracing::debug!("saying goodbye to the coordinator: {e}");
+        }
     }
 
     pub async fn fail(&self, worker: &str, lease: &str, reason: &str) -> Result<bool> {

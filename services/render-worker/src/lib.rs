@@ -96,7 +96,11 @@ pub async fn run(
         let span = tracing::info_span!("task", job = %task.job_id, index = task.index);
         let _enter = span.enter();
         tracing::info!(lease = %task.lease_id, "leased");
-        match render_task(&client, &reg, &renderer, &cache, &outbox, &task, heartbeat).await {
+        let beat = Heartbeat {
+            every: heartbeat,
+            stop: stop.clone(),
+        };
+        match render_task(&client, &reg, &renderer, &cache, &outbox, &task, beat).await {
             Ok(entry) => {
                 outbox.upload(&client, &entry).await?;
                 done += 1;
@@ -111,6 +115,7 @@ pub async fn run(
         }
     }
     outbox.flush(&client).await?;
+    client.leaving(&reg.worker_id).await;
     tracing::info!(samples = done, "worker stopped");
     Ok(())
 }
@@ -144,6 +149,12 @@ pub fn render_to_exr(
     Ok(serde_json::to_string(&out.stats)?)
 }
 
+/// How often a rendering worker heartbeats, and its shutdown flag (a heartbeat says draining).
+struct Heartbeat {
+    every: Duration,
+    stop: watch::Receiver<bool>,
+}
+
 /// Fetches the task's assets, renders it while heartbeating, and writes it to the outbox.
 async fn render_task(
     client: &Client,
@@ -152,7 +163,7 @@ async fn render_task(
     cache: &Arc<AssetCache>,
     outbox: &Arc<Outbox>,
     task: &pb::Task,
-    heartbeat: Duration,
+    heartbeat: Heartbeat,
 ) -> Result<OutboxEntry> {
     let catalog_hash = if task.catalog_blake3.is_empty() {
         reg.catalog_blake3.clone()
@@ -171,11 +182,15 @@ async fn render_task(
     let (hb_stop, mut hb_rx) = watch::channel(false);
     let hb_client = client.clone();
     let (worker, lease) = (reg.worker_id.clone(), task.lease_id.clone());
+    let Heartbeat { every, mut stop } = heartbeat;
     let hb = tokio::spawn(async move {
+        let mut draining = *stop.borrow();
         loop {
             tokio::select! {
-                _ = tokio::time::sleep(heartbeat) => {}
+                _ = tokio::time::sleep(every) => {}
                 _ = hb_rx.changed() => return,
+                // A shutdown request is told at once (the dashboard shows "draining").
+                _ = stop.changed(), if !draining => draining = true,
             }
             match hb_client
                 .heartbeat(&worker, std::slice::from_ref(&lease))

@@ -5,14 +5,23 @@
 //!
 //! Pages: `/` the jobs (state, progress, counts, samples/s, ETA, priority, actions), `/jobs/ID`
 //! one job (the same, its spec as submitted, failures with every reason and worker, the
-//! blocklist). `/api/jobs` is the JSON the pages poll every two seconds to stay current.
+//! blocklist, a paginated gallery of its committed samples, [`gallery`]), `/jobs/ID/samples/N`
+//! one sample's passes, metadata and EXR, `/workers` the render workers ([`workers_page`]),
+//! `/trainer` the trainer service's jobs, loss curves and validation relights
+//! ([`trainer_page`]).
+//! `/api/jobs` is the JSON the pages poll every two seconds to stay current; parts of pages
+//! marked `data-live` are re-fetched as server-rendered fragments.
 
+mod gallery;
 mod pages;
+pub mod preview;
 mod session;
+mod trainer_page;
+mod workers_page;
 
 use std::sync::Arc;
 
-use axum::extract::{Form, Path, State};
+use axum::extract::{Form, Path, Query, State};
 use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Redirect, Response};
 use axum::routing::{get, post};
@@ -22,8 +31,11 @@ use serde::{Deserialize, Serialize};
 use crate::error::CoordError;
 use crate::scheduler::{RunState, Scheduler};
 use crate::service::now_unix;
+use preview::Previews;
 pub use session::COOKIE;
-use session::{Session, Sessions};
+use session::{Login, Session, Sessions};
+use trainer_page::Trainer;
+pub use trainer_page::TrainerLink;
 
 /// How the dashboard authenticates: the coordinator's bearer token, and whether its cookies
 /// must be TLS-only (they must when the coordinator serves TLS).
@@ -31,28 +43,61 @@ use session::{Session, Sessions};
 pub struct DashboardConfig {
     pub token: String,
     pub secure_cookies: bool,
+    /// The trainer service whose jobs the dashboard shows, if any.
+    pub trainer: Option<TrainerLink>,
 }
 
 #[derive(Clone)]
 struct App {
     scheduler: Arc<Scheduler>,
     sessions: Arc<Sessions>,
+    previews: Previews,
+    trainer: Option<Trainer>,
 }
 
-/// The dashboard's routes, to be merged into the metrics server's router.
-pub fn router(scheduler: Arc<Scheduler>, cfg: &DashboardConfig) -> Router {
+/// The dashboard's routes, to be merged into the metrics server's router; `previews` makes
+/// and caches the gallery's images. Fails only on a trainer address that is no URL.
+pub fn router(
+    scheduler: Arc<Scheduler>,
+    previews: Previews,
+    cfg: &DashboardConfig,
+) -> Result<Router, CoordError> {
+    let trainer = cfg
+        .trainer
+        .as_ref()
+        .map(Trainer::connect)
+        .transpose()
+        .map_err(CoordError::Invalid)?;
     let app = App {
         scheduler,
         sessions: Arc::new(Sessions::new(&cfg.token, cfg.secure_cookies)),
+        previews,
+        trainer,
     };
-    Router::new()
+    Ok(Router::new()
         .route("/", get(jobs_page))
         .route("/login", get(login_page).post(login))
         .route("/logout", post(logout))
         .route("/jobs/{id}", get(job_page))
         .route("/jobs/{id}/{action}", post(job_action))
+        .route("/jobs/{id}/gallery", get(gallery::fragment))
+        .route("/jobs/{id}/samples/{index}", get(gallery::sample_page))
+        .route(
+            "/jobs/{id}/samples/{index}/{file}",
+            get(gallery::sample_file),
+        )
+        .route("/workers", get(workers_page::page))
+        .route("/workers/table", get(workers_page::fragment))
+        .route("/trainer", get(trainer_page::page))
+        .route("/trainer/table", get(trainer_page::fragment))
+        .route("/trainer/{id}", get(trainer_page::job_page))
+        .route("/trainer/{id}/losses", get(trainer_page::losses))
+        .route(
+            "/trainer/{id}/relit/{job}/{index}",
+            get(trainer_page::relit),
+        )
         .route("/api/jobs", get(jobs_json))
-        .with_state(app)
+        .with_state(app))
 }
 
 fn html(status: StatusCode, markup: maud::Markup) -> Response {
@@ -84,12 +129,24 @@ struct LoginForm {
 }
 
 async fn login(State(app): State<App>, Form(f): Form<LoginForm>) -> Response {
-    if !app.sessions.token_matches(&f.token) {
-        tracing::warn!("dashboard: a login with a wrong token");
-        return html(
-            StatusCode::UNAUTHORIZED,
-            pages::login(Some("That is not this coordinator's token.")),
-        );
+    match app.sessions.login(&f.token) {
+        Login::Right => {}
+        Login::Wrong => {
+            tracing::warn!("dashboard: a login with a wrong token");
+            return html(
+                StatusCode::UNAUTHORIZED,
+                pages::login(Some("That is not this coordinator's token.")),
+            );
+        }
+        Login::Paused(wait) => {
+            tracing::warn!("dashboard: logins paused after repeated wrong tokens");
+            return html(
+                StatusCode::TOO_MANY_REQUESTS,
+                pages::login(Some(&format!(
+                    "Too many wrong tokens in the last minute; try again in {wait} s."
+                ))),
+            );
+        }
     }
     match app.sessions.open() {
         Some((_, cookie)) => ([(header::SET_COOKIE, cookie)], Redirect::to("/")).into_response(),
@@ -133,7 +190,7 @@ async fn jobs_page(State(app): State<App>, headers: HeaderMap) -> Response {
 
 fn coord_error(e: &CoordError, s: &Session) -> Response {
     let status = match e {
-        CoordError::UnknownJob(_) => StatusCode::NOT_FOUND,
+        CoordError::UnknownJob(_) | CoordError::NotFound(_) => StatusCode::NOT_FOUND,
         CoordError::Conflict(_) | CoordError::Invalid(_) => StatusCode::CONFLICT,
         _ => StatusCode::INTERNAL_SERVER_ERROR,
     };
@@ -147,12 +204,19 @@ fn coord_error(e: &CoordError, s: &Session) -> Response {
     )
 }
 
-async fn job_page(State(app): State<App>, headers: HeaderMap, Path(id): Path<String>) -> Response {
+async fn job_page(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    Query(q): Query<gallery::PageQuery>,
+) -> Response {
     let Some(s) = app.sessions.get(&headers) else {
         return to_login();
     };
-    match app.scheduler.job(&id, now_unix()) {
-        Ok(j) => html(StatusCode::OK, pages::job(&j, &s.csrf)),
+    let job = app.scheduler.job(&id, now_unix());
+    let shown = job.and_then(|j| Ok((gallery::section(&app, &id, q.page)?, j)));
+    match shown {
+        Ok((samples, j)) => html(StatusCode::OK, pages::job(&j, samples, &s.csrf)),
         Err(e) => coord_error(&e, &s),
     }
 }

@@ -22,7 +22,16 @@ pre{background:#fff;padding:.8em;overflow-x:auto;border:1px solid #ddd}
 button{font:inherit;padding:.15em .6em}
 form.inline{display:inline}
 .err{color:#a00;font-weight:600}
+code{word-break:break-all}
 @media (max-width:600px){.wide{display:none}}
+.grid{display:grid;grid-template-columns:repeat(auto-fill,minmax(300px,1fr));gap:.6em}
+.grid figure{margin:0;background:#fff;border:1px solid #ddd;padding:.3em}
+.grid img{width:100%;height:auto;display:block}
+.passes img{width:100%;height:auto;display:block}
+.passes{display:grid;grid-template-columns:repeat(auto-fill,minmax(240px,1fr));gap:.6em}
+.passes figure{margin:0}
+nav.pager a,nav.pager b{margin-right:.5em}
+.state-lost{color:#a00;font-weight:600}
 ";
 
 /// Keeps the numbers of the jobs on the page current: polls /api/jobs and writes text only.
@@ -44,6 +53,18 @@ async function refresh(){
   }catch(e){}
 }
 setInterval(refresh,2000);
+// Parts of a page marked data-live are fragments the server renders (escaped like the page).
+async function live(){
+  for(const el of document.querySelectorAll('[data-live]')){
+    try{
+      const r=await fetch(el.dataset.live,{credentials:'same-origin'});
+      if(!r.ok)continue;
+      const t=await r.text();
+      if(el.dataset.shown!==t){el.innerHTML=t;el.dataset.shown=t;}
+    }catch(e){}
+  }
+}
+setInterval(live,2000);
 ";
 
 fn page(title: &str, csrf: Option<&str>, body: Markup) -> Markup {
@@ -59,7 +80,9 @@ fn page(title: &str, csrf: Option<&str>, body: Markup) -> Markup {
             body {
                 header {
                     a href="/" { "lightfarm" }
-                    span { "render farm" }
+                    a href="/" { "Jobs" }
+                    a href="/workers" { "Workers" }
+                    a href="/trainer" { "Trainer" }
                     @if let Some(csrf) = csrf {
                         form method="post" action="/logout" {
                             input type="hidden" name="csrf" value=(csrf);
@@ -177,7 +200,7 @@ pub fn jobs(jobs: &[JobStatus], csrf: &str) -> Markup {
     )
 }
 
-pub fn job(j: &JobStatus, csrf: &str) -> Markup {
+pub fn job(j: &JobStatus, samples: Markup, csrf: &str) -> Markup {
     let id = &j.record.id;
     page(
         &j.record.name,
@@ -214,6 +237,8 @@ pub fn job(j: &JobStatus, csrf: &str) -> Markup {
                     }
                 }
             }
+            h2 { "Samples" }
+            (samples)
             h2 { "Failures" }
             @if j.recent_failures.is_empty() {
                 p { "None." }
@@ -229,6 +254,11 @@ pub fn job(j: &JobStatus, csrf: &str) -> Markup {
             pre { (j.record.spec_toml) }
         },
     )
+}
+
+/// A page of the dashboard's layout (header with log-out form, live refresh) for other modules.
+pub fn layout(title: &str, csrf: &str, body: Markup) -> Markup {
+    page(title, Some(csrf), body)
 }
 
 /// An error page: the status line's words and what went wrong.

@@ -15,6 +15,10 @@ pub const COOKIE: &str = "lightfarm_session";
 
 /// How long a session lasts without being used.
 const IDLE: Duration = Duration::from_secs(12 * 3600);
+/// Wrong tokens accepted per window before logins pause until the window ends: guessing a
+/// token stays hopeless however many clients try, and a typo never locks anyone out for long.
+const WRONG_PER_WINDOW: u32 = 10;
+const WINDOW: Duration = Duration::from_secs(60);
 
 #[derive(Clone, Debug)]
 pub struct Session {
@@ -28,6 +32,17 @@ pub struct Sessions {
     token: Vec<u8>,
     secure: bool,
     live: Mutex<HashMap<String, Session>>,
+    /// (start of the current window, wrong tokens in it).
+    wrong: Mutex<(Instant, u32)>,
+}
+
+/// What a login attempt gets.
+#[derive(Debug, PartialEq, Eq)]
+pub enum Login {
+    Right,
+    Wrong,
+    /// Too many wrong tokens lately: try again after this many seconds.
+    Paused(u64),
 }
 
 /// 32 random bytes as hex; None when the operating system has no randomness to give.
@@ -43,6 +58,25 @@ impl Sessions {
             token: token.as_bytes().to_vec(),
             secure,
             live: Mutex::new(HashMap::new()),
+            wrong: Mutex::new((Instant::now(), 0)),
+        }
+    }
+
+    /// Checks a login's token, counting wrong ones against the window's budget (while the
+    /// budget is spent, even the right token waits: an attacker learns nothing from it).
+    pub fn login(&self, given: &str) -> Login {
+        let mut wrong = self.wrong.lock().unwrap_or_else(|p| p.into_inner());
+        if wrong.0.elapsed() >= WINDOW {
+            *wrong = (Instant::now(), 0);
+        }
+        if wrong.1 >= WRONG_PER_WINDOW {
+            return Login::Paused(WINDOW.saturating_sub(wrong.0.elapsed()).as_secs() + 1);
+        }
+        if self.token_matches(given) {
+            Login::Right
+        } else {
+            wrong.1 += 1;
+            Login::Wrong
         }
     }
 
@@ -138,6 +172,11 @@ mod tests {
         assert!(got.csrf_matches(&session.csrf) && !got.csrf_matches("guess"));
         s.close(&headers);
         assert!(s.get(&headers).is_none());
+        let s = Sessions::new("tok", false);
+        for _ in 0..WRONG_PER_WINDOW {
+            assert_eq!(s.login("guess"), Login::Wrong);
+        }
+        assert!(matches!(s.login("tok"), Login::Paused(n) if (1..=61).contains(&n)));
         assert!(Sessions::new("t", true)
             .open()
             .expect("id")

@@ -178,13 +178,18 @@ impl Browser {
 
     /// Polls `expr` until it is true (page loads and the dashboard's refresh included).
     pub fn wait_for(&mut self, expr: &str, what: &str) {
+        self.wait_for_long(expr, what, Duration::from_secs(30));
+    }
+
+    /// [`Browser::wait_for`] with a time limit of its own (renders on a busy CI machine).
+    pub fn wait_for_long(&mut self, expr: &str, what: &str, limit: Duration) {
         let started = Instant::now();
         let guarded =
             format!("(() => {{ try {{ return !!({expr}); }} catch (e) {{ return false; }} }})()");
         while self.eval(&guarded) != Value::Bool(true) {
             assert!(
-                started.elapsed() < Duration::from_secs(30),
-                "waited 30 s for {what} ({expr}); page: {}",
+                started.elapsed() < limit,
+                "waited {limit:?} for {what} ({expr}); page: {}",
                 self.eval("document.body ? document.body.innerText : ''")
             );
             std::thread::sleep(Duration::from_millis(100));
