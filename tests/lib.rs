@@ -185,6 +185,11 @@ impl Farm {
 
     /// `lightfarm export JOB --format folder --out OUT`, through the same API.
     pub fn export_folder(&self, job: &str, out: &Path) -> PathBuf {
+        self.export(job, out, &lightfarm_store::ExportFormat::Folder)
+    }
+
+    /// `lightfarm export JOB --format FORMAT --out OUT`, through the same API.
+    pub fn export(&self, job: &str, out: &Path, format: &lightfarm_store::ExportFormat) -> PathBuf {
         let (ch, auth) = self.channel(TOKEN);
         let mut samples = pb::samples_client::SamplesClient::with_interceptor(ch, auth)
             .max_decoding_message_size(64 << 20);
@@ -200,12 +205,8 @@ impl Farm {
                 .await
                 .expect("stream")
                 .into_inner();
-            let mut writer = lightfarm_store::ExportWriter::create(
-                out,
-                job,
-                &lightfarm_store::ExportFormat::Folder,
-            )
-            .expect("export dir");
+            let mut writer =
+                lightfarm_store::ExportWriter::create(out, job, format).expect("export dir");
             let mut assembler = SampleAssembler::default();
             while let Some(chunk) = stream.message().await.expect("chunk") {
                 if let Some((record, bytes)) = assembler.push(chunk).expect("protocol") {

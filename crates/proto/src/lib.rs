@@ -11,6 +11,11 @@ pub mod v1 {
 
 pub mod client;
 
+/// The version of the protocol in `proto/lightfarm/v1`, answered by `Jobs.GetServerInfo`.
+/// Bump it with any change a client must know of, together with the Python client's
+/// `clients/python/lightfarm/_protocol.py` (a test checks they agree).
+pub const PROTOCOL_VERSION: u32 = 1;
+
 /// Bearer-token checking shared by every lightfarm service.
 pub mod auth {
     use tonic::{Request, Status};

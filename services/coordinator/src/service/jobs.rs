@@ -35,6 +35,16 @@ impl pb::jobs_server::Jobs for JobsService {
         Ok(Response::new(job_to_pb(&status)))
     }
 
+    async fn get_server_info(
+        &self,
+        _req: Request<pb::ServerInfoRequest>,
+    ) -> Result<Response<pb::ServerInfo>, Status> {
+        Ok(Response::new(pb::ServerInfo {
+            protocol_version: lightfarm_proto::PROTOCOL_VERSION,
+            server_version: env!("CARGO_PKG_VERSION").to_owned(),
+        }))
+    }
+
     async fn get_job(&self, req: Request<pb::JobRef>) -> Result<Response<pb::Job>, Status> {
         let s = self.0.scheduler.job(&req.into_inner().job_id, now_unix())?;
         Ok(Response::new(job_to_pb(&s)))
