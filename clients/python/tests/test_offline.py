@@ -43,6 +43,28 @@ class Offline(unittest.TestCase):
         with self.assertRaisesRegex(FileNotFoundError, "no manifest.jsonl"):
             list(lightfarm.read_folder("/nonexistent"))
 
+    def test_another_protocol_version_is_refused_before_any_call(self):
+        from lightfarm.v1 import jobs_pb2
+
+        class Jobs:
+            def GetServerInfo(self, req, metadata=None, timeout=None):
+                return jobs_pb2.ServerInfo(protocol_version=99, server_version="9.9.9")
+
+            def ListJobs(self, req, metadata=None, timeout=None):
+                raise AssertionError("called past a protocol mismatch")
+
+        client = lightfarm.Client("http://127.0.0.1:1", token="t")
+        client._jobs = Jobs()
+        with self.assertRaisesRegex(lightfarm.ProtocolMismatch, "protocol version 99, this client version 1"):
+            client.jobs()
+
+    def test_training_needs_a_trainer_address(self):
+        client = lightfarm.Client("http://127.0.0.1:1", token="t", trainer=None)
+        if client.trainer_address:
+            self.skipTest("LIGHTFARM_TRAINER is set")
+        with self.assertRaisesRegex(ValueError, "no trainer address"):
+            client.submit_train("dataset")
+
     def test_train_configs_render_as_toml(self):
         text = _toml({"crop": 16, "split": "all", "net": {"widths": [8, 16]}})
         self.assertEqual(text, 'crop = 16\nsplit = "all"\n[net]\nwidths = [8, 16]\n')
