@@ -47,6 +47,19 @@ class Sample:
     def __getitem__(self, name: str) -> np.ndarray:
         return self.arrays[name]
 
+    @classmethod
+    def from_record(cls, info, data: bytes, passes) -> "Sample":
+        """A sample from its index record (SampleInfo) and its EXR's bytes."""
+        return cls(
+            job_id=info.job_id,
+            index=info.index,
+            split=info.split,
+            sequence=info.sequence,
+            blake3=info.blake3,
+            arrays=decode_exr(data, passes, name=f"sample {info.index} of {info.job_id}"),
+            metadata=json.loads(info.metadata_json or "{}"),
+        )
+
 
 def check_passes(passes: Optional[Iterable[str]]) -> tuple:
     """The passes asked for, checked; None means all of them."""

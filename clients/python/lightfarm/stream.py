@@ -3,7 +3,6 @@ a cursor, following a job that still renders, and surviving coordinator restarts
 
 from __future__ import annotations
 
-import json
 import time
 from typing import Iterable, Iterator, Optional
 
@@ -11,7 +10,7 @@ import grpc
 
 from . import errors
 from .client import Client, finished
-from .sample import Sample, check_passes, decode_exr
+from .sample import Sample, check_passes
 
 
 class SampleStream:
@@ -52,15 +51,7 @@ class SampleStream:
 
     def __iter__(self) -> Iterator[Sample]:
         for info, data in self._records(metadata_only=False):
-            yield Sample(
-                job_id=info.job_id,
-                index=info.index,
-                split=info.split,
-                sequence=info.sequence,
-                blake3=info.blake3,
-                arrays=decode_exr(data, self.passes, name=f"sample {info.index} of {info.job_id}"),
-                metadata=json.loads(info.metadata_json or "{}"),
-            )
+            yield Sample.from_record(info, data, self.passes)
 
     def infos(self) -> Iterator:
         """The same walk through the job with the records (SampleInfo) only, no EXRs."""

@@ -13,7 +13,7 @@ import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
 from .client import Client
-from .sample import Sample, check_passes, decode_exr
+from .sample import Sample, check_passes
 from .stream import SampleStream
 
 
@@ -119,15 +119,7 @@ class StreamingDataset(IterableDataset):
                 if shard_of(info.index, shards) != shard:
                     continue
                 data = self._cached(info, lambda: client.get_sample(info.job_id, info.index)[1])
-                yield Sample(
-                    job_id=info.job_id,
-                    index=info.index,
-                    split=info.split,
-                    sequence=info.sequence,
-                    blake3=info.blake3,
-                    arrays=decode_exr(data, self.passes, name=f"sample {info.index} of {info.job_id}"),
-                    metadata=json.loads(info.metadata_json or "{}"),
-                )
+                yield Sample.from_record(info, data, self.passes)
         finally:
             client.close()
 

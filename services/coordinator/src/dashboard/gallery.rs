@@ -27,7 +27,7 @@ pub struct PageQuery {
 }
 
 /// The sample spec stored with a committed sample (`{"sample": ..., "stats": ..}`).
-fn spec_of(rec: &SampleRecord) -> Option<SampleSpec> {
+pub(super) fn spec_of(rec: &SampleRecord) -> Option<SampleSpec> {
     let meta: serde_json::Value = serde_json::from_str(&rec.metadata_json).ok()?;
     serde_json::from_value(meta.get("sample")?.clone()).ok()
 }

@@ -13,7 +13,6 @@ use axum::http::{header, HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use lightfarm_proto::client::AuthedChannel;
 use lightfarm_proto::v1 as pb;
-use lightfarm_scene::expand::SampleSpec;
 use lightfarm_store::SampleRecord;
 use maud::{html, Markup};
 
@@ -442,9 +441,7 @@ async fn relight(
         .get(job, index)
         .map_err(|e| missing(e.to_string()))?
         .ok_or_else(|| missing(format!("sample {index} of {job} is not committed")))?;
-    let spec: SampleSpec = serde_json::from_str::<serde_json::Value>(&rec.metadata_json)
-        .ok()
-        .and_then(|m| serde_json::from_value(m.get("sample")?.clone()).ok())
+    let spec = super::gallery::spec_of(&rec)
         .ok_or_else(|| missing(format!("sample {index} of {job} has no sample spec")))?;
     let blobs = app.previews.blobs();
     let hash = rec.blake3.clone();
