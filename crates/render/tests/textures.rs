@@ -34,24 +34,8 @@ fn textured_quad(base: Option<Texture>, normal: Option<Texture>) -> Scene {
 #[test]
 fn base_color_texture_is_srgb_decoded_and_oriented() {
     // Quadrants of a 4x4 texture (2x2 texels each, so bilinear filtering inside a quadrant sees
-    // one colour): top (v < 0.5) red, green; bottom blue, white.
-    let texels: [[u8; 4]; 4] = [
-        [200, 30, 30, 255],
-        [30, 200, 30, 255],
-        [30, 30, 200, 255],
-        [255, 255, 255, 255],
-    ];
-    let mut rgba8 = Vec::new();
-    for y in 0..4 {
-        for x in 0..4 {
-            rgba8.extend_from_slice(&texels[(y / 2) * 2 + x / 2]);
-        }
-    }
-    let tex = Texture {
-        width: 4,
-        height: 4,
-        rgba8,
-    };
+    // one colour).
+    let (texels, tex) = quadrant_texture();
     let size = 32u32;
     let out = common::render(
         &textured_quad(Some(tex), None),
@@ -83,6 +67,65 @@ fn base_color_texture_is_srgb_decoded_and_oriented() {
                 (got[k] - want[k]).abs() < 0.03,
                 "albedo at ({x}, {y}) = {got:?}, texel {want:?}"
             );
+        }
+    }
+}
+
+/// The 4x4 texture of four 2x2-texel quadrants (top red, green; bottom blue, white).
+fn quadrant_texture() -> ([[u8; 4]; 4], Texture) {
+    let texels: [[u8; 4]; 4] = [
+        [200, 30, 30, 255],
+        [30, 200, 30, 255],
+        [30, 30, 200, 255],
+        [255, 255, 255, 255],
+    ];
+    let mut rgba8 = Vec::new();
+    for y in 0..4 {
+        for x in 0..4 {
+            rgba8.extend_from_slice(&texels[(y / 2) * 2 + x / 2]);
+        }
+    }
+    (
+        texels,
+        Texture {
+            width: 4,
+            height: 4,
+            rgba8,
+        },
+    )
+}
+
+/// The glTF default sampler repeats: uvs over three tiles each way show the texture 3x3 times,
+/// both just outside the unit square ([-1, 2]: one tile off each edge) and far from it
+/// ([-7, -4] x [5, 8]), where the shader wraps texel coordinates by a different route.
+#[test]
+fn base_color_texture_repeats_outside_the_unit_square() {
+    for origin in [[-1.0f32, -1.0], [-7.0, 5.0]] {
+        let (texels, tex) = quadrant_texture();
+        let mut scene = textured_quad(Some(tex), None);
+        for uv in &mut scene.meshes[0].uvs {
+            *uv = [origin[0] + 3.0 * uv[0], origin[1] + 3.0 * uv[1]];
+        }
+        let size = 64u32;
+        let out = common::render(&scene, &[common::constant_light(1.0)], size, 4, 1);
+        let px = |ndc: f32| ((ndc + 1.0) * 0.5 * size as f32) as u32;
+        for tile in [[0u32, 0u32], [1, 1], [2, 0], [0, 2], [2, 2]] {
+            for (q, texel) in texels.iter().enumerate() {
+                let (qx, qy) = ((q % 2) as f32, (q / 2) as f32);
+                // Quad uv (before the tiling) of the quadrant's centre, and its NDC.
+                let u = (tile[0] as f32 + 0.25 + 0.5 * qx) / 3.0;
+                let v = (tile[1] as f32 + 0.25 + 0.5 * qy) / 3.0;
+                let (x, y) = (-0.62 + 1.24 * u, 0.62 - 1.24 * v);
+                let got = out.albedo[(px(-y) * size + px(x)) as usize];
+                for k in 0..3 {
+                    let want = srgb_to_linear(texel[k]);
+                    assert!(
+                        (got[k] - want).abs() < 0.03,
+                        "uv origin {origin:?}, tile {tile:?}, quadrant {q}: albedo {got:?}, \
+                         texel {texel:?}"
+                    );
+                }
+            }
         }
     }
 }

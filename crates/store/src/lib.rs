@@ -1,6 +1,6 @@
 //! The durable half of the lightfarm coordinator's data: content-addressed blobs (sample EXRs
 //! and assets), the sled index of committed samples, and export of committed samples to
-//! WebDataset tar shards or a folder. See README.md for what is deliberately not here.
+//! WebDataset tar shards or a folder, and the one reader of a sample EXR's passes and header. See README.md for what is deliberately not here.
 
 mod blob;
 mod disk;
@@ -8,6 +8,7 @@ mod error;
 mod export;
 mod index;
 mod memory;
+mod sample_exr;
 mod tiered;
 
 pub use blob::{hash_hex, is_hash, BlobStore, BlobWriter, Hash};
@@ -19,4 +20,5 @@ pub use export::{
 };
 pub use index::{CommitOutcome, SampleIndex, SampleRecord};
 pub use memory::MemoryBlobStore;
+pub use sample_exr::{ExrLayer, SAMPLE_ATTRIBUTE};
 pub use tiered::{TieredBlobStore, DEFAULT_INLINE_MAX};

@@ -7,7 +7,9 @@ use lightfarm_photo::LazyMatting;
 
 use lightfarm_nets::metrics::srgb_encode;
 
-use crate::sample::{decode_sample, read_first_layer, SampleImages};
+use lightfarm_store::ExrLayer;
+
+use crate::sample::{decode_sample, SampleImages};
 use crate::TrainError;
 
 /// An input portrait in linear RGB with its foreground mask.
@@ -119,23 +121,16 @@ pub fn load_portrait(
 
 /// An RGB(A) EXR, and whether it had an alpha channel.
 fn load_plain_exr(bytes: &[u8]) -> Result<(Portrait, bool), String> {
-    let img = read_first_layer(bytes)?;
-    let layer = &img.layer_data;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    let find = |n: &str| {
-        layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string().eq_ignore_ascii_case(n))
-            .map(|c| c.sample_data.values_as_f32().collect::<Vec<f32>>())
-    };
-    let (r, g, b) = match (find("R"), find("G"), find("B")) {
+    let layer = ExrLayer::read(bytes)?;
+    let (w, h) = (layer.width, layer.height);
+    let find = |n: &str| layer.channel_any_case(n).transpose();
+    let (r, g, b) = match (find("R")?, find("G")?, find("B")?) {
         (Some(r), Some(g), Some(b)) => (r, g, b),
         _ => return Err("has no R, G, B channels".into()),
     };
-    let has_alpha = find("A").is_some();
-    let a = find("A").unwrap_or_else(|| vec![1.0; w * h]);
+    let alpha = find("A")?;
+    let has_alpha = alpha.is_some();
+    let a = alpha.unwrap_or_else(|| vec![1.0; w * h]);
     let p = Portrait {
         width: w,
         height: h,

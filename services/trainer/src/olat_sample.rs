@@ -2,10 +2,11 @@
 //! `olatNNN.R/G/B` layer per light of the virtual light stage's basis, beside the sample's
 //! usual layers. `lightfarm relight-olat` and the synthetic-to-real OLAT losses read them here.
 
-use exr::prelude::AttributeValue;
 use lightfarm_scene::expand::SampleSpec;
 
-use crate::sample::{coverage, read_first_layer, spec_from_attribute, SAMPLE_ATTRIBUTE};
+use lightfarm_store::ExrLayer;
+
+use crate::sample::{coverage, spec_from_attribute, SAMPLE_ATTRIBUTE};
 use crate::TrainError;
 
 /// Row-major images of one sample under each OLAT light, and its coverage mask.
@@ -28,25 +29,9 @@ pub fn decode_olat(bytes: &[u8], name: &str) -> Result<OlatImages, TrainError> {
         name: name.to_owned(),
         reason,
     };
-    let img = read_first_layer(bytes).map_err(bad)?;
-    let layer = &img.layer_data;
-    let (width, height) = (layer.size.width(), layer.size.height());
-    let channel = |n: &str| -> Option<Result<Vec<f32>, TrainError>> {
-        let c = layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == n)?;
-        let v: Vec<f32> = c.sample_data.values_as_f32().collect();
-        Some(if v.len() == width * height {
-            Ok(v)
-        } else {
-            Err(bad(format!(
-                "channel {n} holds {} values for {width}x{height}",
-                v.len()
-            )))
-        })
-    };
+    let layer = ExrLayer::read(bytes).map_err(bad)?;
+    let (width, height) = (layer.width, layer.height);
+    let channel = |n: &str| layer.channel(n).map(|c| c.map_err(bad));
     let mut lights = Vec::new();
     loop {
         let base = lightfarm_light::olat_layer(lights.len());
@@ -74,13 +59,9 @@ pub fn decode_olat(bytes: &[u8], name: &str) -> Result<OlatImages, TrainError> {
         Some(m) => coverage(m?),
         None => vec![1.0; width * height],
     };
-    let spec = match layer
-        .attributes
-        .other
-        .get(&exr::prelude::Text::from(SAMPLE_ATTRIBUTE))
-    {
-        Some(AttributeValue::Text(t)) => {
-            let spec = spec_from_attribute(&t.to_string()).map_err(bad)?;
+    let spec = match layer.text(SAMPLE_ATTRIBUTE) {
+        Some(text) => {
+            let spec = spec_from_attribute(&text).map_err(bad)?;
             if spec.render.olat as usize != lights.len() {
                 return Err(bad(format!(
                     "its spec asks for {} OLAT lights but the file holds {} layers (truncated \
@@ -91,7 +72,7 @@ pub fn decode_olat(bytes: &[u8], name: &str) -> Result<OlatImages, TrainError> {
             }
             Some(spec)
         }
-        _ => None,
+        None => None,
     };
     Ok(OlatImages {
         width,

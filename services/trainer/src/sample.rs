@@ -1,14 +1,11 @@
 //! A rendered sample as the trainer sees it: the passes of its EXR and the spec in its header.
 
-use std::io::Cursor;
-
-use exr::prelude::{AttributeValue, ReadChannels, ReadLayers};
 use lightfarm_scene::expand::SampleSpec;
 
 use crate::TrainError;
 
-/// Header attribute the render worker writes: `{"renderer": .., "sample": SampleSpec}`.
-pub const SAMPLE_ATTRIBUTE: &str = "lightfarm.sample";
+use lightfarm_store::ExrLayer;
+pub use lightfarm_store::SAMPLE_ATTRIBUTE;
 
 /// Row-major RGB passes and the coverage mask of one sample.
 #[derive(Clone, Debug)]
@@ -27,71 +24,22 @@ pub struct SampleImages {
     pub spec: SampleSpec,
 }
 
-/// The first layer of an OpenEXR file, every channel and attribute (samples and portraits).
-pub(crate) fn read_first_layer(
-    bytes: &[u8],
-) -> Result<
-    exr::prelude::Image<exr::prelude::Layer<exr::prelude::AnyChannels<exr::prelude::FlatSamples>>>,
-    String,
-> {
-    let img = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(Cursor::new(bytes))
-        .map_err(|e| format!("not a readable OpenEXR file ({e})"))?;
-    Ok(img)
-}
-
 /// Decodes a sample EXR; `name` (a path or sample id) is what errors mention.
 pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainError> {
     let bad = |reason: String| TrainError::Sample {
         name: name.to_owned(),
         reason,
     };
-    let img = read_first_layer(bytes).map_err(bad)?;
-    let layer = &img.layer_data;
-    let (width, height) = (layer.size.width(), layer.size.height());
-    let channel = |n: &str| -> Result<Vec<f32>, TrainError> {
-        let c = layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == n)
-            .ok_or_else(|| bad(format!("has no channel {n}; is it a lightfarm sample?")))?;
-        let v: Vec<f32> = c.sample_data.values_as_f32().collect();
-        if v.len() != width * height {
-            return Err(bad(format!(
-                "channel {n} holds {} values for {width}x{height}",
-                v.len()
-            )));
-        }
-        Ok(v)
-    };
-    let rgb = |base: &str, names: [&str; 3]| -> Result<Vec<[f32; 3]>, TrainError> {
-        let [a, b, c] = names.map(|n| channel(&format!("{base}.{n}")));
-        let (a, b, c) = (a?, b?, c?);
-        Ok((0..width * height)
-            .map(|i| [a[i], b[i], c[i]].map(|v| if v.is_finite() { v } else { 0.0 }))
-            .collect())
-    };
-    let text = match layer
-        .attributes
-        .other
-        .get(&exr::prelude::Text::from(SAMPLE_ATTRIBUTE))
-    {
-        Some(AttributeValue::Text(t)) => t.to_string(),
-        _ => {
-            return Err(bad(format!(
-                "has no {SAMPLE_ATTRIBUTE} header attribute (not written by a lightfarm worker)"
-            )))
-        }
+    let layer = ExrLayer::read(bytes).map_err(bad)?;
+    let rgb = |base: &str, names: [&str; 3]| layer.rgb(base, names).map_err(bad);
+    let Some(text) = layer.text(SAMPLE_ATTRIBUTE) else {
+        return Err(bad(format!(
+            "has no {SAMPLE_ATTRIBUTE} header attribute (not written by a lightfarm worker)"
+        )));
     };
     let spec = spec_from_attribute(&text).map_err(bad)?;
-    let skin = match (skin_id(&text), channel("id.A")) {
-        (Some(id), Ok(ids)) => Some(
+    let skin = match (skin_id(&text), layer.channel("id.A")) {
+        (Some(id), Some(Ok(ids))) => Some(
             ids.into_iter()
                 .map(|v| f32::from(u8::from(v == id as f32)))
                 .collect(),
@@ -101,13 +49,13 @@ pub fn decode_sample(bytes: &[u8], name: &str) -> Result<SampleImages, TrainErro
     let normal = rgb("normal", ["X", "Y", "Z"])?;
     let normal_lens = lens_normals(&normal, rgb("normal_lens", ["X", "Y", "Z"])?);
     Ok(SampleImages {
-        width,
-        height,
+        width: layer.width,
+        height: layer.height,
         lit: [rgb("lit0", ["R", "G", "B"])?, rgb("lit1", ["R", "G", "B"])?],
         albedo: rgb("albedo", ["R", "G", "B"])?,
         normal,
         normal_lens,
-        mask: coverage(channel("mask.A")?),
+        mask: coverage(layer.require("mask.A").map_err(bad)?),
         skin,
         spec,
     })

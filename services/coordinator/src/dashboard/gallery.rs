@@ -5,7 +5,7 @@
 //! so samples appear while the job renders.
 
 use axum::extract::{Path, Query, State};
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use lightfarm_scene::expand::SampleSpec;
 use lightfarm_store::SampleRecord;
@@ -13,7 +13,8 @@ use maud::{html, Markup};
 use serde::Deserialize;
 
 use super::preview::{thumb_size, PASSES};
-use super::{coord_error, html, pages, to_login, App};
+use super::session::{ApiSession, PageSession};
+use super::{coord_error, html, pages, App};
 use crate::error::CoordError;
 use crate::service::now_unix;
 
@@ -95,13 +96,10 @@ fn grid(app: &App, job: &str, page: u64) -> Result<Markup, CoordError> {
 /// `GET /jobs/ID/gallery?page=N`: the grid alone, for the live refresh.
 pub(super) async fn fragment(
     State(app): State<App>,
-    headers: HeaderMap,
+    ApiSession(s): ApiSession,
     Path(job): Path<String>,
     Query(q): Query<PageQuery>,
 ) -> Response {
-    let Some(s) = app.sessions.get(&headers) else {
-        return (StatusCode::UNAUTHORIZED, "log in on /login").into_response();
-    };
     if let Err(e) = app.scheduler.job(&job, now_unix()) {
         return coord_error(&e, &s);
     }
@@ -122,12 +120,9 @@ fn record(app: &App, job: &str, index: u64) -> Result<SampleRecord, CoordError> 
 /// `GET /jobs/ID/samples/N`: every pass at full size, the metadata, the EXR link.
 pub(super) async fn sample_page(
     State(app): State<App>,
-    headers: HeaderMap,
+    PageSession(s): PageSession,
     Path((job, index)): Path<(String, u64)>,
 ) -> Response {
-    let Some(s) = app.sessions.get(&headers) else {
-        return to_login();
-    };
     let rec = match record(&app, &job, index) {
         Ok(r) => r,
         Err(e) => return coord_error(&e, &s),
@@ -228,12 +223,9 @@ fn chrono_free_utc(unix: f64) -> String {
 /// `GET /jobs/ID/samples/N/FILE`: `sample.exr`, `strip.png` or `PASS.png`.
 pub(super) async fn sample_file(
     State(app): State<App>,
-    headers: HeaderMap,
+    _: ApiSession,
     Path((job, index, file)): Path<(String, u64, String)>,
 ) -> Response {
-    if app.sessions.get(&headers).is_none() {
-        return (StatusCode::UNAUTHORIZED, "log in on /login").into_response();
-    }
     let rec = match record(&app, &job, index) {
         Ok(r) => r,
         Err(e) => return (StatusCode::NOT_FOUND, e.to_string()).into_response(),

@@ -33,7 +33,7 @@ use crate::scheduler::{RunState, Scheduler};
 use crate::service::now_unix;
 use preview::Previews;
 pub use session::COOKIE;
-use session::{Login, Session, Sessions};
+use session::{ApiSession, Login, PageSession, Session, Sessions};
 use trainer_page::Trainer;
 pub use trainer_page::TrainerLink;
 
@@ -178,10 +178,7 @@ async fn logout(State(app): State<App>, headers: HeaderMap, Form(f): Form<Action
     }
 }
 
-async fn jobs_page(State(app): State<App>, headers: HeaderMap) -> Response {
-    let Some(s) = app.sessions.get(&headers) else {
-        return to_login();
-    };
+async fn jobs_page(State(app): State<App>, PageSession(s): PageSession) -> Response {
     html(
         StatusCode::OK,
         pages::jobs(&app.scheduler.jobs(now_unix()), &s.csrf),
@@ -206,13 +203,10 @@ fn coord_error(e: &CoordError, s: &Session) -> Response {
 
 async fn job_page(
     State(app): State<App>,
-    headers: HeaderMap,
+    PageSession(s): PageSession,
     Path(id): Path<String>,
     Query(q): Query<gallery::PageQuery>,
 ) -> Response {
-    let Some(s) = app.sessions.get(&headers) else {
-        return to_login();
-    };
     let job = app.scheduler.job(&id, now_unix());
     let shown = job.and_then(|j| Ok((gallery::section(&app, &id, q.page)?, j)));
     match shown {
@@ -223,13 +217,10 @@ async fn job_page(
 
 async fn job_action(
     State(app): State<App>,
-    headers: HeaderMap,
+    PageSession(s): PageSession,
     Path((id, action)): Path<(String, String)>,
     Form(f): Form<ActionForm>,
 ) -> Response {
-    let Some(s) = app.sessions.get(&headers) else {
-        return to_login();
-    };
     if !s.csrf_matches(&f.csrf) {
         return html(
             StatusCode::FORBIDDEN,
@@ -280,10 +271,7 @@ struct JobRow {
     priority: i32,
 }
 
-async fn jobs_json(State(app): State<App>, headers: HeaderMap) -> Response {
-    if app.sessions.get(&headers).is_none() {
-        return (StatusCode::UNAUTHORIZED, "log in on /login").into_response();
-    }
+async fn jobs_json(State(app): State<App>, _: ApiSession) -> Response {
     let rows: Vec<JobRow> = app
         .scheduler
         .jobs(now_unix())

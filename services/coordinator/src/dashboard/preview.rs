@@ -4,20 +4,16 @@
 //! is named by their hash), so what is there is never stale; gallery pages read those PNGs
 //! and never touch an EXR again.
 
-use std::io::Cursor;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use exr::prelude::{AttributeValue, ReadChannels, ReadLayers};
 use image::ImageEncoder;
-use lightfarm_store::BlobStore;
+use lightfarm_store::{BlobStore, ExrLayer, SAMPLE_ATTRIBUTE};
 
 /// The passes a preview shows, in the order of the thumbnail strip.
 pub const PASSES: [&str; 6] = ["lit0", "lit1", "albedo", "normal", "normal_lens", "mask"];
 /// Height of one tile of the thumbnail strip (smaller samples keep their own height).
 pub const THUMB_HEIGHT: usize = 96;
-/// Header attribute with the sample, its materials and id table (written by the worker).
-const SAMPLE_ATTRIBUTE: &str = "lightfarm.sample";
 /// Decodes at once; more would only queue for the same cores the coordinator serves from.
 const CONCURRENT_DECODES: usize = 2;
 
@@ -141,53 +137,22 @@ type Decoded = (usize, usize, Vec<Pass>, String);
 
 /// The six passes of a sample EXR and its header attribute (the JSON text, or `{}`).
 fn decode(bytes: &[u8]) -> Result<Decoded, String> {
-    let img = exr::prelude::read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(Cursor::new(bytes))
-        .map_err(|e| format!("not a readable OpenEXR file ({e})"))?;
-    let layer = &img.layer_data;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    let channel = |n: &str| -> Result<Vec<f32>, String> {
-        let c = layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == n)
-            .ok_or_else(|| format!("has no channel {n}; is it a lightfarm sample?"))?;
-        let v: Vec<f32> = c.sample_data.values_as_f32().collect();
-        if v.len() != w * h {
-            return Err(format!("channel {n} holds {} values for {w}x{h}", v.len()));
-        }
-        Ok(v.into_iter()
-            .map(|x| if x.is_finite() { x } else { 0.0 })
-            .collect())
-    };
+    let layer = ExrLayer::read(bytes)?;
     let mut passes = Vec::with_capacity(PASSES.len());
     for name in PASSES {
-        let comps: [&str; 3] = match name {
+        let comps = match name {
             "normal" | "normal_lens" => ["X", "Y", "Z"],
             "mask" => ["A", "A", "A"],
             _ => ["R", "G", "B"],
         };
-        let [a, b, c] = comps.map(|s| channel(&format!("{name}.{s}")));
-        let (a, b, c) = (a?, b?, c?);
         passes.push(Pass {
-            rgb: (0..w * h).map(|i| [a[i], b[i], c[i]]).collect(),
+            rgb: layer.rgb(name, comps)?,
         });
     }
-    let header = match layer
-        .attributes
-        .other
-        .get(&exr::prelude::Text::from(SAMPLE_ATTRIBUTE))
-    {
-        Some(AttributeValue::Text(t)) => t.to_string(),
-        _ => "{}".to_owned(),
-    };
-    Ok((w, h, passes, header))
+    let header = layer
+        .text(SAMPLE_ATTRIBUTE)
+        .unwrap_or_else(|| "{}".to_owned());
+    Ok((layer.width, layer.height, passes, header))
 }
 
 /// Width and height of one tile of the thumbnail strip of a `width`×`height` sample.

@@ -7,8 +7,13 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use axum::http::HeaderMap;
+use axum::extract::FromRequestParts;
+use axum::http::request::Parts;
+use axum::http::{HeaderMap, StatusCode};
+use axum::response::{IntoResponse, Redirect, Response};
 use subtle::ConstantTimeEq;
+
+use super::App;
 
 /// The cookie that holds the session id.
 pub const COOKIE: &str = "lightfarm_session";
@@ -24,6 +29,35 @@ const WINDOW: Duration = Duration::from_secs(60);
 pub struct Session {
     pub csrf: String,
     last_used: Instant,
+}
+
+/// The session of a request for a page; a request without one is sent to `/login`.
+pub struct PageSession(pub Session);
+
+/// The session of a request for a fragment, a file or the JSON API, which the pages' scripts
+/// fetch; a request without one gets 401 (a login page has no place inside a table cell).
+pub struct ApiSession(pub Session);
+
+impl FromRequestParts<App> for PageSession {
+    type Rejection = Response;
+
+    async fn from_request_parts(parts: &mut Parts, app: &App) -> Result<Self, Response> {
+        match app.sessions.get(&parts.headers) {
+            Some(s) => Ok(PageSession(s)),
+            None => Err(Redirect::to("/login").into_response()),
+        }
+    }
+}
+
+impl FromRequestParts<App> for ApiSession {
+    type Rejection = Response;
+
+    async fn from_request_parts(parts: &mut Parts, app: &App) -> Result<Self, Response> {
+        match app.sessions.get(&parts.headers) {
+            Some(s) => Ok(ApiSession(s)),
+            None => Err((StatusCode::UNAUTHORIZED, "log in on /login").into_response()),
+        }
+    }
 }
 
 /// Sessions in memory: a coordinator restart logs everyone out, which costs a login and

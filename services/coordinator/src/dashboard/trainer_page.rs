@@ -9,14 +9,15 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use axum::extract::{Path, State};
-use axum::http::{header, HeaderMap, StatusCode};
+use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use lightfarm_proto::client::AuthedChannel;
 use lightfarm_proto::v1 as pb;
 use lightfarm_store::SampleRecord;
 use maud::{html, Markup};
 
-use super::{html, pages, to_login, App};
+use super::session::{ApiSession, PageSession};
+use super::{html, pages, App};
 
 /// Calls that render a page wait this long for the trainer.
 const CALL: Duration = Duration::from_secs(5);
@@ -176,10 +177,7 @@ async fn table(app: &App) -> Markup {
 }
 
 /// `GET /trainer`.
-pub(super) async fn page(State(app): State<App>, headers: HeaderMap) -> Response {
-    let Some(s) = app.sessions.get(&headers) else {
-        return to_login();
-    };
+pub(super) async fn page(State(app): State<App>, PageSession(s): PageSession) -> Response {
     let body = html! {
         h1 { "Trainer" }
         div data-live="/trainer/table" { (table(&app).await) }
@@ -188,10 +186,7 @@ pub(super) async fn page(State(app): State<App>, headers: HeaderMap) -> Response
 }
 
 /// `GET /trainer/table`: the jobs table alone, for the live refresh.
-pub(super) async fn fragment(State(app): State<App>, headers: HeaderMap) -> Response {
-    if app.sessions.get(&headers).is_none() {
-        return (StatusCode::UNAUTHORIZED, "log in on /login").into_response();
-    }
+pub(super) async fn fragment(State(app): State<App>, _: ApiSession) -> Response {
     html(StatusCode::OK, table(&app).await)
 }
 
@@ -336,12 +331,9 @@ async fn losses_fragment(app: &App, id: &str) -> Markup {
 /// `GET /trainer/ID`.
 pub(super) async fn job_page(
     State(app): State<App>,
-    headers: HeaderMap,
+    PageSession(s): PageSession,
     Path(id): Path<String>,
 ) -> Response {
-    let Some(s) = app.sessions.get(&headers) else {
-        return to_login();
-    };
     let dataset = match &app.trainer {
         Some(t) => t
             .jobs()
@@ -380,12 +372,9 @@ pub(super) async fn job_page(
 /// `GET /trainer/ID/losses`: the state line and the plot, for the live refresh.
 pub(super) async fn losses(
     State(app): State<App>,
-    headers: HeaderMap,
+    _: ApiSession,
     Path(id): Path<String>,
 ) -> Response {
-    if app.sessions.get(&headers).is_none() {
-        return (StatusCode::UNAUTHORIZED, "log in on /login").into_response();
-    }
     html(StatusCode::OK, losses_fragment(&app, &id).await)
 }
 
@@ -393,12 +382,9 @@ pub(super) async fn losses(
 /// (PNG), made once per checkpoint.
 pub(super) async fn relit(
     State(app): State<App>,
-    headers: HeaderMap,
+    _: ApiSession,
     Path((id, job, index)): Path<(String, String, u64)>,
 ) -> Response {
-    if app.sessions.get(&headers).is_none() {
-        return (StatusCode::UNAUTHORIZED, "log in on /login").into_response();
-    }
     let Some(t) = app.trainer.clone() else {
         return (StatusCode::NOT_FOUND, "no trainer is configured").into_response();
     };

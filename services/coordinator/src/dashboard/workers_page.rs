@@ -3,11 +3,12 @@
 //! and the jobs that blocklisted it. The table is a live fragment.
 
 use axum::extract::State;
-use axum::http::{HeaderMap, StatusCode};
-use axum::response::{IntoResponse, Response};
+use axum::http::StatusCode;
+use axum::response::Response;
 use maud::{html, Markup};
 
-use super::{html, pages, to_login, App};
+use super::session::{ApiSession, PageSession};
+use super::{html, pages, App};
 use crate::scheduler::{WorkerState, WorkerStatus};
 use crate::service::now_unix;
 
@@ -72,10 +73,7 @@ fn table(workers: &[WorkerStatus], now: f64) -> Markup {
 }
 
 /// `GET /workers`.
-pub(super) async fn page(State(app): State<App>, headers: HeaderMap) -> Response {
-    let Some(s) = app.sessions.get(&headers) else {
-        return to_login();
-    };
+pub(super) async fn page(State(app): State<App>, PageSession(s): PageSession) -> Response {
     let now = now_unix();
     let body = html! {
         h1 { "Workers" }
@@ -87,10 +85,7 @@ pub(super) async fn page(State(app): State<App>, headers: HeaderMap) -> Response
 }
 
 /// `GET /workers/table`: the table alone, for the live refresh.
-pub(super) async fn fragment(State(app): State<App>, headers: HeaderMap) -> Response {
-    if app.sessions.get(&headers).is_none() {
-        return (StatusCode::UNAUTHORIZED, "log in on /login").into_response();
-    }
+pub(super) async fn fragment(State(app): State<App>, _: ApiSession) -> Response {
     let now = now_unix();
     html(StatusCode::OK, table(&app.scheduler.workers(now), now))
 }
