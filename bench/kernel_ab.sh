@@ -8,6 +8,9 @@
 # A revision suffixed with +guards keeps naga's loop bounding and integer-division checks
 # (e.g. b3212ca+guards is the kernel as it was before they were turned off).
 # Env: LIGHTFARM_BIN = a prebuilt lightfarm (default: the debug build, made here).
+# Both kernels must bind what that binary binds: since the BVH nodes became a storage image
+# (binding 1), kernels of revisions before that change need a binary of their own revision
+# (time those with two LIGHTFARM_BIN runs of bench/compare.sh instead).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source scripts/setup-system.sh

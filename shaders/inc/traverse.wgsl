@@ -81,6 +81,12 @@ fn safe_inverse(x: f32) -> f32 {
     return 1.0 / x;
 }
 
+// Record `i` of the node image: texel (i mod 4096, i / 4096), rows of RECORDS_PER_ROW
+// (crates/render/src/vulkan/image.rs).
+fn node_record(i: u32) -> vec4<u32> {
+    return textureLoad(nodes, vec2<i32>(i32(i & 4095u), i32(i >> 12u)));
+}
+
 struct NodeHit {
     hit_mask: u32,
     child_base: u32,
@@ -93,11 +99,11 @@ struct NodeHit {
 // bits (unary counts shifted by their offset) in the low 24 bits.
 fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, tmax: f32, oct_inv4: u32) -> NodeHit {
     let base = node * NODE_VEC4S;
-    let v0 = nodes[base];
-    let v1 = nodes[base + 1u];
-    let v2 = nodes[base + 2u];
-    let v3 = nodes[base + 3u];
-    let v4 = nodes[base + 4u];
+    let v0 = node_record(base);
+    let v1 = node_record(base + 1u);
+    let v2 = node_record(base + 2u);
+    let v3 = node_record(base + 3u);
+    let v4 = node_record(base + 4u);
     let p = bitcast<vec3<f32>>(v0.xyz);
     let extent = vec3<f32>(
         bitcast<f32>((v0.w & 0xffu) << 23u),

@@ -6,13 +6,15 @@ use std::sync::Arc;
 use crate::gpu_env::PackedEnv;
 use crate::gpu_scene::PackedScene;
 use crate::gpu_types::Params;
-use crate::vulkan::{GpuBuffer, GpuContext};
+use crate::vulkan::{GpuBuffer, GpuContext, GpuImage, Resource};
 use crate::RenderError;
 
 /// Device buffers of a scene and its lights, bound in the order of shaders/inc/bindings.wgsl.
 pub(crate) struct Bound {
     pub params: GpuBuffer,
-    pub scene: [GpuBuffer; 7],
+    /// BVH nodes, five records each.
+    pub nodes: GpuImage,
+    pub scene: [GpuBuffer; 6],
     pub env: [GpuBuffer; 3],
 }
 
@@ -25,8 +27,8 @@ impl Bound {
     ) -> Result<Bound, RenderError> {
         Ok(Bound {
             params: GpuBuffer::from_slice(ctx, "params", std::slice::from_ref(params))?,
+            nodes: GpuImage::from_records(ctx, "bvh nodes", bytemuck::cast_slice(&scene.nodes))?,
             scene: [
-                GpuBuffer::from_slice(ctx, "bvh nodes", &scene.nodes)?,
                 GpuBuffer::from_slice(ctx, "triangle positions", &scene.tri_pos)?,
                 GpuBuffer::from_slice(ctx, "triangle attributes", &scene.tri_attr)?,
                 GpuBuffer::from_slice(ctx, "instances", &scene.instances)?,
@@ -48,12 +50,12 @@ impl Bound {
         &'a self,
         rw: [&'a GpuBuffer; 5],
         tables: &'a GpuBuffer,
-    ) -> Vec<&'a GpuBuffer> {
-        let mut v = vec![&self.params];
-        v.extend(self.scene.iter());
-        v.extend(self.env.iter());
-        v.extend(rw);
-        v.push(tables);
+    ) -> Vec<Resource<'a>> {
+        let mut v = vec![Resource::Buffer(&self.params), Resource::Image(&self.nodes)];
+        v.extend(self.scene.iter().map(Resource::Buffer));
+        v.extend(self.env.iter().map(Resource::Buffer));
+        v.extend(rw.map(Resource::Buffer));
+        v.push(Resource::Buffer(tables));
         v
     }
 }

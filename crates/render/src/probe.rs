@@ -139,18 +139,18 @@ impl Probe {
         let push = std::mem::size_of::<Push>() as u32;
         Ok(Probe {
             ctx: ctx.clone(),
-            probe: ComputeKernel::new(
+            probe: ComputeKernel::with_bindings(
                 ctx,
                 "probe",
                 &shaders::probe(),
-                shaders::NUM_BINDINGS,
+                &shaders::BINDINGS,
                 push,
             )?,
-            trace: ComputeKernel::new(
+            trace: ComputeKernel::with_bindings(
                 ctx,
                 "trace_rays",
                 &shaders::trace_rays(),
-                shaders::NUM_BINDINGS,
+                &shaders::BINDINGS,
                 push,
             )?,
             tables: crate::tables::compute(ctx)?,
@@ -198,7 +198,7 @@ impl Probe {
         let pin = GpuBuffer::from_slice(&self.ctx, "probe input", &input)?;
         let pout = GpuBuffer::zeroed(&self.ctx, "probe output", (out_vec4s as u64) * 16)?;
         let bindings = bound.bindings([&lit, &aux, &counters, &pin, &pout], &self.tables);
-        kernel.dispatch(
+        kernel.dispatch_resources(
             &bindings,
             bytemuck::bytes_of(&push),
             [(push.count).div_ceil(64), 1, 1],

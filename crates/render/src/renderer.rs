@@ -67,11 +67,11 @@ pub struct Renderer {
 impl Renderer {
     pub fn new(request: &DeviceRequest) -> Result<Renderer, RenderError> {
         let ctx = GpuContext::new(request)?;
-        let integrator = ComputeKernel::new(
+        let integrator = ComputeKernel::with_bindings(
             &ctx,
             "integrator",
             &integrator_spirv()?,
-            shaders::NUM_BINDINGS,
+            &shaders::BINDINGS,
             std::mem::size_of::<Push>() as u32,
         )?;
         let tables = crate::tables::compute(&ctx)?;
@@ -102,8 +102,11 @@ impl Renderer {
             .map(|_| GpuBuffer::zeroed(&self.ctx, "warm-up", 16))
             .collect::<Result<_, _>>()?;
         let bindings = bound.bindings([&rw[0], &rw[1], &rw[2], &rw[3], &rw[4]], &self.tables);
-        self.integrator
-            .dispatch(&bindings, bytemuck::bytes_of(&Push::default()), [1, 1, 1])?;
+        self.integrator.dispatch_resources(
+            &bindings,
+            bytemuck::bytes_of(&Push::default()),
+            [1, 1, 1],
+        )?;
         Ok(())
     }
 
@@ -139,11 +142,11 @@ impl Renderer {
     /// rays as the production kernel, a little slower.
     pub fn set_traversal_counters(&mut self, on: bool) -> Result<(), RenderError> {
         if on && self.counting.is_none() {
-            self.counting = Some(ComputeKernel::new(
+            self.counting = Some(ComputeKernel::with_bindings(
                 &self.ctx,
                 "integrator with traversal counters",
                 &shaders::integrator_counters(),
-                shaders::NUM_BINDINGS,
+                &shaders::BINDINGS,
                 std::mem::size_of::<Push>() as u32,
             )?);
         }
@@ -331,8 +334,12 @@ impl Renderer {
                 if dispatch {
                     let stage = |mode: u32| Push { mode, ..push };
                     let slots = count as u64 * pixels;
-                    kernel.dispatch(&bindings, bytemuck::bytes_of(&stage(STAGE_PATHS)), groups)?;
-                    kernel.dispatch(
+                    kernel.dispatch_resources(
+                        &bindings,
+                        bytemuck::bytes_of(&stage(STAGE_PATHS)),
+                        groups,
+                    )?;
+                    kernel.dispatch_resources(
                         &bindings,
                         bytemuck::bytes_of(&Push {
                             write_aux: 0,
@@ -340,9 +347,13 @@ impl Renderer {
                         }),
                         [slots.div_ceil(64) as u32, 1, 1],
                     )?;
-                    kernel.dispatch(&bindings, bytemuck::bytes_of(&stage(STAGE_GATHER)), groups)?;
+                    kernel.dispatch_resources(
+                        &bindings,
+                        bytemuck::bytes_of(&stage(STAGE_GATHER)),
+                        groups,
+                    )?;
                 } else {
-                    kernel.dispatch(&bindings, bytemuck::bytes_of(&push), groups)?;
+                    kernel.dispatch_resources(&bindings, bytemuck::bytes_of(&push), groups)?;
                 }
                 // With counters on this reads the per-pixel words too; they accumulate across
                 // dispatches, only the first four are reset.

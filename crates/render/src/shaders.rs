@@ -1,5 +1,7 @@
 //! SPIR-V of the kernels under `shaders/kernels/`, compiled by build.rs with naga.
 
+use crate::vulkan::BindingKind;
+
 /// SPIR-V words from their little-endian bytes (a length not a multiple of 4 drops the tail;
 /// callers reading files check it first).
 pub(crate) fn words(bytes: &[u8]) -> Vec<u32> {
@@ -37,5 +39,10 @@ pub fn tables() -> Vec<u32> {
     words(include_bytes!(concat!(env!("OUT_DIR"), "/tables.spv")))
 }
 
-/// Number of storage-buffer bindings every kernel declares (shaders/inc/bindings.wgsl).
-pub const NUM_BINDINGS: u32 = 17;
+/// The bindings every kernel declares (shaders/inc/bindings.wgsl): storage buffers, but the
+/// BVH nodes (binding 1) are a record image (crate::vulkan::GpuImage says why).
+pub const BINDINGS: [BindingKind; 17] = {
+    let mut b = [BindingKind::StorageBuffer; 17];
+    b[1] = BindingKind::Image;
+    b
+};

@@ -16,11 +16,11 @@ use crate::RenderError;
 /// `LUT_N × LUT_N` vec4s, cell `r · LUT_N + μ` = (A, B, E_sheen, 0) for μ = (i + ½)/LUT_N and
 /// roughness r = j/(LUT_N − 1), where a Schlick GGX lobe of α = r² reflects F0·A + B.
 pub fn compute(ctx: &Arc<GpuContext>) -> Result<GpuBuffer, RenderError> {
-    let kernel = ComputeKernel::new(
+    let kernel = ComputeKernel::with_bindings(
         ctx,
         "tables",
         &shaders::tables(),
-        shaders::NUM_BINDINGS,
+        &shaders::BINDINGS,
         std::mem::size_of::<Push>() as u32,
     )?;
     let bound = Bound::upload(
@@ -38,7 +38,7 @@ pub fn compute(ctx: &Arc<GpuContext>) -> Result<GpuBuffer, RenderError> {
         [&dummies[0], &dummies[1], &dummies[2], &dummies[3], &out],
         &dummies[4],
     );
-    kernel.dispatch(
+    kernel.dispatch_resources(
         &bindings,
         bytemuck::bytes_of(&Push::default()),
         [(cells as u32).div_ceil(64), 1, 1],

@@ -6,7 +6,8 @@ use std::str::FromStr;
 use std::sync::Arc;
 
 use lightfarm_render::vulkan::{
-    list_devices, ComputeKernel, DeviceRequest, GpuBuffer, GpuContext, VulkanError,
+    list_devices, BindingKind, ComputeKernel, DeviceRequest, GpuBuffer, GpuContext, GpuImage,
+    Resource, VulkanError,
 };
 
 /// naga 30 spells the push-constant address space `immediate` (formerly `push_constant`).
@@ -135,6 +136,75 @@ fn buffers_round_trip_and_empty_buffers_are_sixteen_zero_bytes() {
 
     let zeros = GpuBuffer::zeroed(&ctx, "zeros", 40).unwrap();
     assert_eq!(zeros.read::<u64>().unwrap(), vec![0; 5]);
+}
+
+/// Copies record `pc.add + i` of a record image (rows of 4096 texels) to out[i].
+const READ_RECORDS: &str = r#"
+struct Pc { first: u32, n: u32 }
+var<immediate> pc: Pc;
+
+@group(0) @binding(0) var records: texture_storage_2d<rgba32uint, read>;
+@group(0) @binding(1) var<storage, read_write> out: array<vec4<u32>>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if (i < pc.n) {
+        let r = pc.first + i;
+        out[i] = textureLoad(records, vec2<i32>(i32(r & 4095u), i32(r >> 12u)));
+    }
+}
+"#;
+
+#[test]
+fn record_images_read_back_every_record_across_rows() {
+    let ctx = context();
+    // Three rows, the last one partial; records differ in every word.
+    let n = 2 * 4096 + 1234u32;
+    let records: Vec<[u32; 4]> = (0..n)
+        .map(|i| [i, i ^ 0xdead_beef, i.wrapping_mul(2_654_435_761), !i])
+        .collect();
+    let image = GpuImage::from_records(&ctx, "records", &records).unwrap();
+    assert_eq!(image.records(), u64::from(n));
+    let kinds = [BindingKind::Image, BindingKind::StorageBuffer];
+    let kernel =
+        ComputeKernel::with_bindings(&ctx, "read_records", &compile(READ_RECORDS), &kinds, 8)
+            .unwrap();
+    // Scattered reads, so the lanes of each vector fetch from different rows.
+    let first = 4000u32;
+    let count = n - first;
+    let out = GpuBuffer::zeroed(&ctx, "out", u64::from(count) * 16).unwrap();
+    kernel
+        .dispatch_resources(
+            &[Resource::Image(&image), Resource::Buffer(&out)],
+            &push(first, count),
+            [count.div_ceil(WORKGROUP), 1, 1],
+        )
+        .unwrap();
+    let got: Vec<[u32; 4]> = out.read().unwrap();
+    assert_eq!(got, records[first as usize..]);
+
+    // A buffer where the kernel wants an image is refused, naming the binding and buffer.
+    let err = kernel
+        .dispatch_resources(
+            &[Resource::Buffer(&out), Resource::Buffer(&out)],
+            &push(0, 1),
+            [1, 1, 1],
+        )
+        .unwrap_err();
+    assert!(
+        matches!(err, VulkanError::BindingKindMismatch { binding: 0, .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("`out`"), "{err}");
+    // So is a kernel of images dispatched as plain buffers.
+    let err = kernel
+        .dispatch(&[&out, &out], &push(0, 1), [1, 1, 1])
+        .unwrap_err();
+    assert!(
+        matches!(err, VulkanError::BindingKindMismatch { .. }),
+        "{err}"
+    );
 }
 
 #[test]

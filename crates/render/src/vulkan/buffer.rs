@@ -388,7 +388,7 @@ unsafe fn free(ctx: &GpuContext, alloc: &Allocation) {
     ctx.device().free_memory(alloc.memory, None);
 }
 
-fn memory_type(
+pub(super) fn memory_type(
     props: &vk::PhysicalDeviceMemoryProperties,
     type_bits: u32,
     required: vk::MemoryPropertyFlags,

@@ -1,17 +1,64 @@
-//! Compute kernels: a SPIR-V module whose bindings 0..n-1 in set 0 are storage buffers, plus an
-//! optional push-constant block, dispatched synchronously.
+//! Compute kernels: a SPIR-V module whose bindings 0..n-1 in set 0 are storage buffers or
+//! record images ([`GpuImage`]), plus an optional push-constant block, dispatched synchronously.
 
 use std::sync::Arc;
 
 use ash::vk;
 
-use super::{vk_err, GpuBuffer, GpuContext, VulkanError};
+use super::{vk_err, GpuBuffer, GpuContext, GpuImage, VulkanError};
+
+/// What a binding of a kernel is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BindingKind {
+    StorageBuffer,
+    /// A storage image read with `textureLoad` (a [`GpuImage`]).
+    Image,
+}
+
+impl BindingKind {
+    fn descriptor(self) -> vk::DescriptorType {
+        match self {
+            BindingKind::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
+            BindingKind::Image => vk::DescriptorType::STORAGE_IMAGE,
+        }
+    }
+}
+
+/// What is bound at one binding of a dispatch.
+#[derive(Clone, Copy, Debug)]
+pub enum Resource<'a> {
+    Buffer(&'a GpuBuffer),
+    Image(&'a GpuImage),
+}
+
+impl Resource<'_> {
+    fn kind(&self) -> BindingKind {
+        match self {
+            Resource::Buffer(_) => BindingKind::StorageBuffer,
+            Resource::Image(_) => BindingKind::Image,
+        }
+    }
+
+    fn label(&self) -> &str {
+        match self {
+            Resource::Buffer(b) => b.label(),
+            Resource::Image(i) => i.label(),
+        }
+    }
+
+    fn context(&self) -> &Arc<GpuContext> {
+        match self {
+            Resource::Buffer(b) => b.context(),
+            Resource::Image(i) => i.context(),
+        }
+    }
+}
 
 /// A compute pipeline ready to dispatch; the entry point is always `main`.
 pub struct ComputeKernel {
     ctx: Arc<GpuContext>,
     label: String,
-    num_bindings: u32,
+    bindings: Vec<BindingKind>,
     push_constant_bytes: u32,
     module: vk::ShaderModule,
     set_layout: vk::DescriptorSetLayout,
@@ -44,11 +91,24 @@ impl Drop for Parts<'_> {
 }
 
 impl ComputeKernel {
+    /// A kernel whose `num_bindings` bindings are all storage buffers.
     pub fn new(
         ctx: &Arc<GpuContext>,
         label: &str,
         spirv: &[u32],
         num_bindings: u32,
+        push_constant_bytes: u32,
+    ) -> Result<ComputeKernel, VulkanError> {
+        let kinds = vec![BindingKind::StorageBuffer; num_bindings as usize];
+        Self::with_bindings(ctx, label, spirv, &kinds, push_constant_bytes)
+    }
+
+    /// A kernel with binding i of kind `bindings[i]`.
+    pub fn with_bindings(
+        ctx: &Arc<GpuContext>,
+        label: &str,
+        spirv: &[u32],
+        bindings: &[BindingKind],
         push_constant_bytes: u32,
     ) -> Result<ComputeKernel, VulkanError> {
         if spirv.is_empty() {
@@ -72,11 +132,14 @@ impl ComputeKernel {
             layout: vk::PipelineLayout::null(),
             pipeline: vk::Pipeline::null(),
         };
-        let bindings: Vec<_> = (0..num_bindings)
-            .map(|binding| {
+        let kinds = bindings;
+        let bindings: Vec<_> = kinds
+            .iter()
+            .zip(0u32..)
+            .map(|(kind, binding)| {
                 vk::DescriptorSetLayoutBinding::default()
                     .binding(binding)
-                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .descriptor_type(kind.descriptor())
                     .descriptor_count(1)
                     .stage_flags(vk::ShaderStageFlags::COMPUTE)
             })
@@ -137,7 +200,7 @@ impl ComputeKernel {
         let kernel = ComputeKernel {
             ctx: Arc::clone(ctx),
             label: label.to_string(),
-            num_bindings,
+            bindings: kinds.to_vec(),
             push_constant_bytes,
             // Taking the handles leaves nulls behind, which disarms the cleanup guard.
             module: std::mem::take(&mut parts.module),
@@ -148,25 +211,44 @@ impl ComputeKernel {
         Ok(kernel)
     }
 
-    /// Binds `buffers[i]` at binding i, pushes `push_constants`, dispatches `groups` and waits
-    /// for the device to finish.
+    /// Binds `buffers[i]` at binding i (a kernel of storage buffers only), pushes
+    /// `push_constants`, dispatches `groups` and waits for the device to finish.
     pub fn dispatch(
         &self,
         buffers: &[&GpuBuffer],
         push_constants: &[u8],
         groups: [u32; 3],
     ) -> Result<(), VulkanError> {
-        self.check(buffers, push_constants, groups)?;
+        let resources: Vec<Resource> = buffers.iter().map(|b| Resource::Buffer(b)).collect();
+        self.dispatch_resources(&resources, push_constants, groups)
+    }
+
+    /// Binds `resources[i]` at binding i, pushes `push_constants`, dispatches `groups` and
+    /// waits for the device to finish.
+    pub fn dispatch_resources(
+        &self,
+        resources: &[Resource],
+        push_constants: &[u8],
+        groups: [u32; 3],
+    ) -> Result<(), VulkanError> {
+        self.check(resources, push_constants, groups)?;
         if groups.contains(&0) {
             return Ok(());
         }
         let device = self.ctx.device();
         // A pool per call: descriptor sets then never outlive the buffers they point at, and
         // the cost is negligible next to a dispatch.
-        let pool = if self.num_bindings > 0 {
-            let sizes = [vk::DescriptorPoolSize::default()
-                .ty(vk::DescriptorType::STORAGE_BUFFER)
-                .descriptor_count(self.num_bindings)];
+        let pool = if !self.bindings.is_empty() {
+            let sizes: Vec<_> = [BindingKind::StorageBuffer, BindingKind::Image]
+                .into_iter()
+                .map(|kind| {
+                    let n = self.bindings.iter().filter(|k| **k == kind).count();
+                    vk::DescriptorPoolSize::default()
+                        .ty(kind.descriptor())
+                        .descriptor_count(n as u32)
+                })
+                .filter(|s| s.descriptor_count > 0)
+                .collect();
             let info = vk::DescriptorPoolCreateInfo::default()
                 .max_sets(1)
                 .pool_sizes(&sizes);
@@ -178,7 +260,7 @@ impl ComputeKernel {
         } else {
             None
         };
-        let result = self.dispatch_with(pool, buffers, push_constants, groups);
+        let result = self.dispatch_with(pool, resources, push_constants, groups);
         if let Some(pool) = pool {
             // SAFETY: the submission using the set has completed (or never happened); a failed
             // wait is a lost device, where destroying is still allowed.
@@ -189,15 +271,28 @@ impl ComputeKernel {
 
     fn check(
         &self,
-        buffers: &[&GpuBuffer],
+        resources: &[Resource],
         push_constants: &[u8],
         groups: [u32; 3],
     ) -> Result<(), VulkanError> {
-        if buffers.len() != self.num_bindings as usize {
+        if resources.len() != self.bindings.len() {
             return Err(VulkanError::BindingCountMismatch {
                 kernel: self.label.clone(),
-                expected: self.num_bindings,
-                got: buffers.len(),
+                expected: self.bindings.len() as u32,
+                got: resources.len(),
+            });
+        }
+        if let Some((binding, r)) = resources
+            .iter()
+            .zip(&self.bindings)
+            .enumerate()
+            .find_map(|(i, (r, kind))| (r.kind() != *kind).then_some((i, r)))
+        {
+            return Err(VulkanError::BindingKindMismatch {
+                kernel: self.label.clone(),
+                binding: binding as u32,
+                expected: format!("{:?}", self.bindings[binding]),
+                got: r.label().to_string(),
             });
         }
         if push_constants.len() != self.push_constant_bytes as usize {
@@ -207,7 +302,7 @@ impl ComputeKernel {
                 got: push_constants.len(),
             });
         }
-        if let Some(foreign) = buffers
+        if let Some(foreign) = resources
             .iter()
             .find(|b| !Arc::ptr_eq(b.context(), &self.ctx))
         {
@@ -230,7 +325,7 @@ impl ComputeKernel {
     fn dispatch_with(
         &self,
         pool: Option<vk::DescriptorPool>,
-        buffers: &[&GpuBuffer],
+        resources: &[Resource],
         push_constants: &[u8],
         groups: [u32; 3],
     ) -> Result<(), VulkanError> {
@@ -249,24 +344,39 @@ impl ComputeKernel {
                     vk::Result::ERROR_UNKNOWN,
                 ));
             };
-            let infos: Vec<[vk::DescriptorBufferInfo; 1]> = buffers
-                .iter()
-                .map(|b| {
-                    [vk::DescriptorBufferInfo::default()
-                        .buffer(b.raw())
-                        .offset(0)
-                        .range(vk::WHOLE_SIZE)]
-                })
-                .collect();
+            // One info per binding, of either kind; each write borrows its own.
+            let infos: Vec<([vk::DescriptorBufferInfo; 1], [vk::DescriptorImageInfo; 1])> =
+                resources
+                    .iter()
+                    .map(|r| match r {
+                        Resource::Buffer(b) => (
+                            [vk::DescriptorBufferInfo::default()
+                                .buffer(b.raw())
+                                .offset(0)
+                                .range(vk::WHOLE_SIZE)],
+                            [vk::DescriptorImageInfo::default()],
+                        ),
+                        Resource::Image(i) => (
+                            [vk::DescriptorBufferInfo::default()],
+                            [vk::DescriptorImageInfo::default()
+                                .image_view(i.view())
+                                .image_layout(vk::ImageLayout::GENERAL)],
+                        ),
+                    })
+                    .collect();
             let writes: Vec<_> = infos
                 .iter()
+                .zip(resources)
                 .zip(0u32..)
-                .map(|(info, binding)| {
-                    vk::WriteDescriptorSet::default()
+                .map(|(((buffer, image), r), binding)| {
+                    let w = vk::WriteDescriptorSet::default()
                         .dst_set(allocated)
                         .dst_binding(binding)
-                        .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                        .buffer_info(info)
+                        .descriptor_type(r.kind().descriptor());
+                    match r {
+                        Resource::Buffer(_) => w.buffer_info(buffer),
+                        Resource::Image(_) => w.image_info(image),
+                    }
                 })
                 .collect();
             // SAFETY: the set is not in use; every buffer is alive for the whole call.

@@ -1,4 +1,4 @@
-//! The Vulkan layer: device choice, storage buffers and compute kernels.
+//! The Vulkan layer: device choice, storage buffers, record images and compute kernels.
 //!
 //! This is the only module of the project that touches `ash`; everything above it speaks in
 //! [`GpuContext`], [`GpuBuffer`] and [`ComputeKernel`]. Every submission is synchronous (it waits
@@ -7,6 +7,7 @@
 
 mod buffer;
 mod context;
+mod image;
 mod kernel;
 
 use std::convert::Infallible;
@@ -15,7 +16,8 @@ use std::str::FromStr;
 
 pub use buffer::GpuBuffer;
 pub use context::{list_devices, GpuContext, FORCE_STAGING_ENV};
-pub use kernel::ComputeKernel;
+pub use image::{GpuImage, RECORDS_PER_ROW};
+pub use kernel::{BindingKind, ComputeKernel, Resource};
 
 /// The one hint shared by every "no Vulkan here" error, so users see the same fix everywhere.
 const INSTALL_HINT: &str =
@@ -45,6 +47,16 @@ pub enum VulkanError {
     Vk {
         what: &'static str,
         code: ash::vk::Result,
+    },
+
+    #[error(
+        "`{label}` holds {records} records but an image on this device holds at most {limit} \
+         (maxImageDimension2D rows of 4096); render a smaller scene or use another device"
+    )]
+    ImageTooLarge {
+        label: String,
+        records: u64,
+        limit: u64,
     },
 
     #[error(
@@ -91,6 +103,17 @@ pub enum VulkanError {
         kernel: String,
         expected: u32,
         got: usize,
+    },
+
+    #[error(
+        "kernel `{kernel}` wants a {expected} at binding {binding} but was given `{got}`; bind \
+         resources in the order and kinds the shader declares"
+    )]
+    BindingKindMismatch {
+        kernel: String,
+        binding: u32,
+        expected: String,
+        got: String,
     },
 
     #[error(
