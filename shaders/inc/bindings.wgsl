@@ -115,11 +115,12 @@ const PI: f32 = 3.14159265358979;
 const INV_PI: f32 = 0.318309886183791;
 
 @group(0) @binding(0) var<storage, read> params: Params;
-// BVH nodes as records of a 4096-wide R32G32B32A32_UINT image (crates/render/src/vulkan/
-// image.rs): lavapipe turns a storage-buffer load at a different address per lane into a
-// bounds-checked scalar load and branch per lane and component, a texel fetch into a gather.
+// BVH nodes and triangle / fibre-segment positions, the traversal's scattered reads, as records
+// of 4096-wide R32G32B32A32_UINT images (crates/render/src/vulkan/image.rs): lavapipe turns a
+// storage-buffer load at a different address per lane into a bounds-checked scalar load and
+// branch per lane and component, an image read into vector loads.
 @group(0) @binding(1) var nodes: texture_storage_2d<rgba32uint, read>;
-@group(0) @binding(2) var<storage, read> tri_pos: array<vec4<f32>>;
+@group(0) @binding(2) var tri_pos: texture_storage_2d<rgba32uint, read>;
 @group(0) @binding(3) var<storage, read> tri_attr: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> instances: array<Instance>;
 @group(0) @binding(5) var<storage, read> materials: array<Material>;

@@ -63,9 +63,9 @@ fn shade_hit(ray: Ray, hit: Hit) -> ShadingPoint {
     let mat_id = triangle_material(slot);
     let mat = materials[mat_id];
 
-    let v0 = tri_pos[slot * 3u].xyz;
-    let v1 = tri_pos[slot * 3u + 1u].xyz;
-    let v2 = tri_pos[slot * 3u + 2u].xyz;
+    let v0 = tri_record(slot * 3u).xyz;
+    let v1 = tri_record(slot * 3u + 1u).xyz;
+    let v2 = tri_record(slot * 3u + 2u).xyz;
     let p_obj = v0 * w + v1 * hit.u + v2 * hit.v;
     let p = transform_point(inst.obj_to_world, p_obj);
 
@@ -152,8 +152,8 @@ const FIBRE_SPAWN_DEPTH: f32 = 0.05;
 
 fn shade_fibre(ray: Ray, hit: Hit) -> ShadingPoint {
     let inst = instances[hit.instance];
-    let a = tri_pos[hit.tri];
-    let b = tri_pos[hit.tri + 1u];
+    let a = tri_record(hit.tri);
+    let b = tri_record(hit.tri + 1u);
     let mat_id = inst.material;
     let mat = materials[mat_id];
     // Object space: the ray point, the closest point on the axis and the radius there.

@@ -81,10 +81,19 @@ fn safe_inverse(x: f32) -> f32 {
     return 1.0 / x;
 }
 
-// Record `i` of the node image: texel (i mod 4096, i / 4096), rows of RECORDS_PER_ROW
+// Texel of record `i` in a record image: (i mod 4096, i / 4096), rows of RECORDS_PER_ROW
 // (crates/render/src/vulkan/image.rs).
+fn record_texel(i: u32) -> vec2<i32> {
+    return vec2<i32>(i32(i & 4095u), i32(i >> 12u));
+}
+
 fn node_record(i: u32) -> vec4<u32> {
-    return textureLoad(nodes, vec2<i32>(i32(i & 4095u), i32(i >> 12u)));
+    return textureLoad(nodes, record_texel(i));
+}
+
+// vec4 `i` of the triangle and fibre-segment positions (see Hit.tri).
+fn tri_record(i: u32) -> vec4<f32> {
+    return bitcast<vec4<f32>>(textureLoad(tri_pos, record_texel(i)));
 }
 
 struct NodeHit {
@@ -143,9 +152,9 @@ fn intersect_node(node: u32, origin: vec3<f32>, inv_dir: vec3<f32>, tmin: f32, t
 // Möller–Trumbore in the exact formulation of obvhs' `Triangle::intersect`, so that the CPU
 // reference and the shader agree bit for bit on which triangles are hit.
 fn intersect_triangle(slot: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, tmax: f32) -> vec3<f32> {
-    let v0 = tri_pos[slot * 3u].xyz;
-    let v1 = tri_pos[slot * 3u + 1u].xyz;
-    let v2 = tri_pos[slot * 3u + 2u].xyz;
+    let v0 = tri_record(slot * 3u).xyz;
+    let v1 = tri_record(slot * 3u + 1u).xyz;
+    let v2 = tri_record(slot * 3u + 2u).xyz;
     let e1 = v0 - v1;
     let e2 = v2 - v0;
     let n = cross(e1, e2);
@@ -217,9 +226,9 @@ const SEGMENT_VEC4S: u32 = 3u;
 // Returns (t, fraction along the segment, 1) or t = -1. The ray origin is moved next to the
 // segment before solving: hair is ~1e-4 of the distance to the camera.
 fn intersect_segment(base: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, tmax: f32) -> vec3<f32> {
-    let a = tri_pos[base];
-    let b = tri_pos[base + 1u];
-    let c = tri_pos[base + 2u];
+    let a = tri_record(base);
+    let b = tri_record(base + 1u);
+    let c = tri_record(base + 2u);
     let p0 = a.xyz;
     let p1 = b.xyz;
     let r0 = abs(a.w);

@@ -14,7 +14,9 @@ pub(crate) struct Bound {
     pub params: GpuBuffer,
     /// BVH nodes, five records each.
     pub nodes: GpuImage,
-    pub scene: [GpuBuffer; 6],
+    /// Triangle (three records) and fibre-segment positions, bits of `[f32; 4]`.
+    pub tri_pos: GpuImage,
+    pub scene: [GpuBuffer; 5],
     pub env: [GpuBuffer; 3],
 }
 
@@ -28,8 +30,12 @@ impl Bound {
         Ok(Bound {
             params: GpuBuffer::from_slice(ctx, "params", std::slice::from_ref(params))?,
             nodes: GpuImage::from_records(ctx, "bvh nodes", bytemuck::cast_slice(&scene.nodes))?,
+            tri_pos: GpuImage::from_records(
+                ctx,
+                "triangle positions",
+                bytemuck::cast_slice(&scene.tri_pos),
+            )?,
             scene: [
-                GpuBuffer::from_slice(ctx, "triangle positions", &scene.tri_pos)?,
                 GpuBuffer::from_slice(ctx, "triangle attributes", &scene.tri_attr)?,
                 GpuBuffer::from_slice(ctx, "instances", &scene.instances)?,
                 GpuBuffer::from_slice(ctx, "materials", &scene.materials)?,
@@ -51,7 +57,11 @@ impl Bound {
         rw: [&'a GpuBuffer; 5],
         tables: &'a GpuBuffer,
     ) -> Vec<Resource<'a>> {
-        let mut v = vec![Resource::Buffer(&self.params), Resource::Image(&self.nodes)];
+        let mut v = vec![
+            Resource::Buffer(&self.params),
+            Resource::Image(&self.nodes),
+            Resource::Image(&self.tri_pos),
+        ];
         v.extend(self.scene.iter().map(Resource::Buffer));
         v.extend(self.env.iter().map(Resource::Buffer));
         v.extend(rw.map(Resource::Buffer));

@@ -40,9 +40,11 @@ pub fn tables() -> Vec<u32> {
 }
 
 /// The bindings every kernel declares (shaders/inc/bindings.wgsl): storage buffers, but the
-/// BVH nodes (binding 1) are a record image (crate::vulkan::GpuImage says why).
+/// BVH nodes (binding 1) and triangle positions (binding 2) are record images
+/// (crate::vulkan::GpuImage says why).
 pub const BINDINGS: [BindingKind; 17] = {
     let mut b = [BindingKind::StorageBuffer; 17];
     b[1] = BindingKind::Image;
+    b[2] = BindingKind::Image;
     b
 };
