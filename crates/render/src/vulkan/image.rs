@@ -120,25 +120,31 @@ impl GpuImage {
         let mut padded = records.to_vec();
         padded.resize(width as usize * height as usize, [0; 4]);
         let staging = GpuBuffer::from_slice(ctx, &format!("{label} (upload)"), &padded)?;
-        let (src, dst) = (staging.raw(), img.image);
+        let (src, dst_image) = (staging.raw(), img.image);
         ctx.submit_and_wait("vkCmdCopyBufferToImage", |device, cmd| {
-            let to_transfer = vk::ImageMemoryBarrier::default()
-                .old_layout(vk::ImageLayout::UNDEFINED)
-                .new_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-                .dst_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(dst)
-                .subresource_range(whole);
-            let to_shader = vk::ImageMemoryBarrier::default()
-                .old_layout(vk::ImageLayout::TRANSFER_DST_OPTIMAL)
-                .new_layout(vk::ImageLayout::GENERAL)
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(dst)
-                .subresource_range(whole);
+            let layout = |old, new, before, after| {
+                vk::ImageMemoryBarrier::default()
+                    .old_layout(old)
+                    .new_layout(new)
+                    .src_access_mask(before)
+                    .dst_access_mask(after)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .image(dst_image)
+                    .subresource_range(whole)
+            };
+            let to_transfer = layout(
+                vk::ImageLayout::UNDEFINED,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::AccessFlags::empty(),
+                vk::AccessFlags::TRANSFER_WRITE,
+            );
+            let to_shader = layout(
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::ImageLayout::GENERAL,
+                vk::AccessFlags::TRANSFER_WRITE,
+                vk::AccessFlags::SHADER_READ,
+            );
             let region = vk::BufferImageCopy::default()
                 .image_subresource(
                     vk::ImageSubresourceLayers::default()
@@ -164,7 +170,7 @@ impl GpuImage {
                 device.cmd_copy_buffer_to_image(
                     cmd,
                     src,
-                    dst,
+                    dst_image,
                     vk::ImageLayout::TRANSFER_DST_OPTIMAL,
                     &[region],
                 );
