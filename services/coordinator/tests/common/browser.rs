@@ -145,6 +145,14 @@ impl Browser {
 
     /// Sends a command and returns its result (events in between are dropped).
     pub fn call(&mut self, method: &str, params: Value) -> Value {
+        match self.try_call(method, params) {
+            Ok(v) => v,
+            Err(e) => panic!("{method}: {e}"),
+        }
+    }
+
+    /// [`Browser::call`] that hands DevTools' error reply back instead of failing the test.
+    fn try_call(&mut self, method: &str, params: Value) -> Result<Value, Value> {
         self.next_id += 1;
         let id = self.next_id;
         let msg = json!({"id": id, "method": method, "params": params}).to_string();
@@ -155,8 +163,10 @@ impl Browser {
             };
             let v: Value = serde_json::from_str(t.as_str()).expect("json");
             if v["id"] == id {
-                assert!(v.get("error").is_none(), "{method}: {v}");
-                return v["result"].clone();
+                return match v.get("error") {
+                    Some(_) => Err(v),
+                    None => Ok(v["result"].clone()),
+                };
             }
         }
     }
@@ -186,13 +196,25 @@ impl Browser {
         let started = Instant::now();
         let guarded =
             format!("(() => {{ try {{ return !!({expr}); }} catch (e) {{ return false; }} }})()");
-        while self.eval(&guarded) != Value::Bool(true) {
+        while !self.poll(&guarded) {
             assert!(
                 started.elapsed() < limit,
                 "waited {limit:?} for {what} ({expr}); page: {}",
                 self.eval("document.body ? document.body.innerText : ''")
             );
             std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// One evaluation of a guarded predicate. A form submit or a redirect can replace the
+    /// page while the evaluation is in flight; DevTools then answers "Inspected target
+    /// navigated or closed", which means "not yet" to a poll, not a failure.
+    fn poll(&mut self, guarded: &str) -> bool {
+        let params = json!({"expression": guarded, "returnByValue": true, "awaitPromise": true});
+        match self.try_call("Runtime.evaluate", params) {
+            Ok(r) => r["result"]["value"] == Value::Bool(true),
+            Err(e) if e.to_string().contains("navigated or closed") => false,
+            Err(e) => panic!("Runtime.evaluate: {e}"),
         }
     }
 
