@@ -25,8 +25,13 @@ pub struct TrainConfig {
     pub assets: Option<PathBuf>,
     #[serde(default = "default_steps")]
     pub steps: u64,
+    /// Examples per optimiser step.
     #[serde(default = "default_batch")]
     pub batch: usize,
+    /// Examples per forward/backward pass when a batch does not fit the device at once: the
+    /// step adds up the gradients of `batch / micro_batch` passes (`step.rs`). Default: `batch`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub micro_batch: Option<usize>,
     /// Square crop side in pixels; 0 trains on whole images. A multiple of 2^(levels−1).
     #[serde(default)]
     pub crop: usize,
@@ -186,6 +191,11 @@ impl TrainConfig {
         }
     }
 
+    /// Examples per forward/backward pass.
+    pub fn micro_batch(&self) -> usize {
+        self.micro_batch.unwrap_or(self.batch)
+    }
+
     /// The cache directory of a streamed dataset.
     pub fn cache_dir(&self) -> PathBuf {
         self.stream
@@ -200,6 +210,14 @@ impl TrainConfig {
         let multiple = relight.size_multiple();
         if let Some(text) = self.dataset.to_str().filter(|t| FarmAddress::is_farm(t)) {
             FarmAddress::parse(text).map_err(|e| e.to_string())?;
+        }
+        if let Some(m) = self.micro_batch {
+            if m == 0 || m > self.batch || !self.batch.is_multiple_of(m) {
+                return Err(format!(
+                    "micro_batch = {m} must divide batch = {} (e.g. batch = 64, micro_batch = 8); leave it out to run the whole batch at once",
+                    self.batch
+                ));
+            }
         }
         let checks: [(bool, String); 10] = [
             (

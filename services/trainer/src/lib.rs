@@ -3,7 +3,7 @@
 //!
 //! Map: [`config`] (train.toml) → [`data`] (folder export → seeded batches on background
 //! threads, using [`sample`] to decode EXRs and [`lights`] for prefiltered HDRIs) → [`train`]
-//! (loop, loss log, checkpoints) → [`infer`] (load a model, relight an image) and [`eval`].
+//! (loop, loss log, checkpoints; [`step`] the gradients of one step, in micro-batches) → [`infer`] (load a model, relight an image) and [`eval`].
 
 pub mod adapt;
 pub mod config;
@@ -18,6 +18,7 @@ pub mod olat_sample;
 pub mod sample;
 pub mod sample_cache;
 pub mod service;
+mod step;
 pub mod train;
 
 use std::path::{Path, PathBuf};

@@ -15,19 +15,18 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
-use burn::optim::{GradientsParams, ModuleOptimizer};
-use burn::prelude::*;
+use burn::optim::ModuleOptimizer;
 use lightfarm_nets::{
-    critic_loss, generator_loss, load_weights, save_weights, stable_param_ids, PatchGan,
-    PatchGanConfig, RelightNet, Vgg16,
+    load_weights, save_weights, stable_param_ids, PatchGan, PatchGanConfig, RelightNet, Vgg16,
 };
 use lightfarm_scene::Catalog;
 use serde::{Deserialize, Serialize};
 
 use crate::config::TrainConfig;
-use crate::data::{to_device, Dataset, PrefetchParams, Prefetcher};
+use crate::data::{Dataset, PrefetchParams, Prefetcher};
 use crate::farm::{FarmAddress, FarmOptions, FarmSource, StreamState, STREAM_FILE};
 use crate::lights::LightCache;
+use crate::step::{self, StepSpec};
 use crate::TrainError;
 
 /// Held while a run seeds Burn and initialises its networks. Burn's seed is process-wide: two
@@ -190,49 +189,42 @@ pub fn train(
                 cfg.net.widths.len()
             )));
         }
-        let batch = to_device(&examples, &device)?;
-        let out = model.forward(batch.input, batch.targets.mask.clone(), &batch.light);
-        let adversarial = step >= cfg.net.adversarial_from && cfg.loss.adversarial > 0.0;
-        let loss = generator_loss(
-            &out,
-            &batch.targets,
-            &cfg.loss,
-            adversarial.then_some(&critic),
-            vgg.as_ref(),
-        );
-        let total = scalar(&loss.total);
-        if !total.is_finite() {
-            return Err(TrainError::Diverged { step, loss: total });
+        let grads = step::gradients(
+            &model,
+            &critic,
+            &examples,
+            &device,
+            &StepSpec {
+                micro_batch: cfg.micro_batch(),
+                weights: &cfg.loss,
+                adversarial: step >= cfg.net.adversarial_from && cfg.loss.adversarial > 0.0,
+                train_critic: cfg.loss.adversarial > 0.0,
+                vgg: vgg.as_ref(),
+            },
+        )?;
+        let loss = grads.losses;
+        if !loss.total.is_finite() {
+            return Err(TrainError::Diverged {
+                step,
+                loss: loss.total,
+            });
         }
-        let grads = GradientsParams::from_grads(loss.total.backward(), &model);
-        model = optim.step(cfg.lr, model, grads);
-
-        let critic_value = if cfg.loss.adversarial > 0.0 {
-            let c = critic_loss(
-                &critic,
-                batch.targets.relit.clone(),
-                out.relit.clone().detach(),
-                batch.targets.mask.clone(),
-            );
-            let value = scalar(&c);
-            let grads = GradientsParams::from_grads(c.backward(), &critic);
-            critic = critic_optim.step(cfg.lr, critic, grads);
-            Some(value)
-        } else {
-            None
-        };
+        model = optim.step(cfg.lr, model, grads.model);
+        if let Some(g) = grads.critic {
+            critic = critic_optim.step(cfg.lr, critic, g);
+        }
         step += 1;
         let entry = StepLog {
             step,
-            total,
-            normal: scalar(&loss.normal),
-            normal_lens: scalar(&loss.normal_lens),
-            albedo: scalar(&loss.albedo),
-            relit: scalar(&loss.relit),
-            residual: loss.residual.as_ref().map(scalar),
-            adversarial: loss.adversarial.as_ref().map(scalar),
-            critic: critic_value,
-            perceptual: loss.perceptual.as_ref().map(scalar),
+            total: loss.total,
+            normal: loss.normal,
+            normal_lens: loss.normal_lens,
+            albedo: loss.albedo,
+            relit: loss.relit,
+            residual: loss.residual,
+            adversarial: loss.adversarial,
+            critic: loss.critic,
+            perceptual: loss.perceptual,
             samples_per_second: examples.len() as f32 / started.elapsed().as_secs_f32().max(1e-9),
             dataset_samples: drawn_from,
         };
@@ -275,10 +267,6 @@ pub fn train(
         checkpoint,
         cancelled,
     })
-}
-
-fn scalar(t: &Tensor<1>) -> f32 {
-    t.clone().into_scalar::<f32>()
 }
 
 /// Writes `run.json` on the first run; later runs must have the same network and data, or the

@@ -192,6 +192,18 @@ fn bad_configs_are_refused_with_the_key() {
             "render_net",
         ),
         ("dataset = [", "train.toml"),
+        (
+            "dataset = \"d\"\nout = \"o\"\nbatch = 8\nmicro_batch = 3\n",
+            "micro_batch = 3",
+        ),
+        (
+            "dataset = \"d\"\nout = \"o\"\nbatch = 8\nmicro_batch = 0\n",
+            "micro_batch",
+        ),
+        (
+            "dataset = \"d\"\nout = \"o\"\nbatch = 8\nmicro_batch = 16\n",
+            "divide batch",
+        ),
     ] {
         std::fs::write(&path, text).unwrap();
         let err = TrainConfig::load(&path).expect_err(text).to_string();
@@ -280,6 +292,44 @@ fn the_example_config_is_valid() {
     let cfg = TrainConfig::load(&path).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(cfg.net.render_net, RenderNet::Decomposed);
     assert!(cfg.dataset.ends_with("out/dataset"));
+}
+
+/// The paper's schedule (section 4): 512² crops, batch 64 in micro-batches of 8, lr 1e-4,
+/// 50k iterations, the full-width networks and the perceptual loss.
+#[test]
+fn the_paper_preset_is_the_papers_schedule() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/train-paper.toml");
+    let cfg = TrainConfig::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((cfg.crop, cfg.batch, cfg.micro_batch()), (512, 64, 8));
+    assert_eq!((cfg.lr, cfg.steps), (1e-4, 50_000));
+    assert_eq!(cfg.net.widths, vec![32, 64, 128, 256, 512]);
+    assert_eq!(cfg.net.render_net, RenderNet::Decomposed);
+    assert_eq!(
+        cfg.perceptual_weights(),
+        Some(lightfarm_nets::vgg::builtin_weights())
+    );
+    assert_eq!(cfg.device, "auto");
+}
+
+/// A batch run in micro-batches trains and logs one line per step, whose loss is the mean
+/// over the step's micro-batches (step.rs checks the gradients themselves).
+#[test]
+fn micro_batches_train_one_logged_step_each() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut cfg = config(&tmp.path().join("run"), 2, RenderNet::Decomposed);
+    cfg.micro_batch = Some(1);
+    let summary = lightfarm_trainer::train(
+        &cfg,
+        Catalog::builtin().unwrap(),
+        &mut (),
+        &AtomicBool::new(false),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(summary.end_step, 2);
+    let log = lightfarm_trainer::train::read_losses(&cfg.out).unwrap();
+    assert_eq!(log.iter().map(|l| l.step).collect::<Vec<_>>(), vec![1, 2]);
+    assert!(log.iter().all(|l| l.total.is_finite() && l.total > 0.0));
 }
 
 /// Random VGG16 + LPIPS weights in torchvision's / lpips's layout (the code cannot tell them
