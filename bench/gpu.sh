@@ -1,23 +1,28 @@
 #!/usr/bin/env bash
 # Every GPU figure in BENCHMARKS.md, in one run on an NVIDIA machine:
 #   1. the renderer on the GPU (sphere and head scenes of bench/compare.sh, two sizes), beside
-#      Mitsuba 3's cuda_ad_rgb on the same scenes when `import mitsuba` works;
+#      Mitsuba 3's cuda_ad_rgb on the same scenes when `import mitsuba` works; then the
+#      traversal counters of the ICT heads against the other heads, and shared paths (K = 2
+#      and 8 lightings) against separate renders on a dataset sample;
 #   2. training iterations/s of the relighting network, Burn's wgpu backend vs the same network
-#      in PyTorch CUDA (bench/train_torch.py), same run, same shapes, batch 1 and 8 at 256²;
-#      then the traversal counters of the ICT heads against the other heads, and shared paths
-#      (K = 2 and 8 lightings) against separate renders on a dataset sample;
-#   3. the whole pipeline on the GPU: a dataset rendered, a tiny network trained on it until it
+#      in PyTorch CUDA (bench/train_torch.py), same run, same shapes, batch 1 and 8 at 256² and
+#      4 at 512²;
+#   3. the paper preset (examples/train-paper.toml) trained for PAPER_STEPS steps, and the time
+#      its 50k steps take at that rate;
+#   4. the whole pipeline on the GPU: a dataset rendered, a tiny network trained on it until it
 #      overfits, `lightfarm eval` on the samples it saw.
 # Usage: bench/gpu.sh [OUT]  (default out/gpu-bench)
 # Env: BIN = a folder with prebuilt `lightfarm`, `bench_train`, `bench_scene` and `lighting_cost` (built with
 #      --features gpu) for machines without cargo; by default they are built here. SPHERE = the
 #      bench sphere (`bench_scene` output) if it exists already.
 #      PYTHON = a python with torch and CUDA (default python3). STEPS = overfit steps (800).
-#      ONLY = render, train or pipeline runs that section alone.
+#      PAPER_STEPS = steps of the paper preset (6). ONLY = render, train, paper or pipeline
+#      runs that section alone.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-out/gpu-bench}
 STEPS=${STEPS:-800}
+PAPER_STEPS=${PAPER_STEPS:-6}
 PYTHON=${PYTHON:-python3}
 mkdir -p "$OUT"
 OUT=$(cd "$OUT" && pwd)
@@ -114,9 +119,11 @@ fi
 
 if want train; then
 echo "## training: Burn wgpu vs PyTorch CUDA (same network, same shapes)"
-for batch in 1 8; do
-    common=(--batch "$batch" --size 256 --widths 32,64,128,256,512 --iters 10 --warmup 3)
-    burn=$("$BIN/bench_train" "${common[@]}" --device gpu 2>"$OUT/bench_train_$batch.log")
+for shape in "1 256" "8 256" "4 512"; do
+    set -- $shape
+    batch=$1
+    common=(--batch "$1" --size "$2" --widths 32,64,128,256,512 --iters 10 --warmup 3)
+    burn=$("$BIN/bench_train" "${common[@]}" --device gpu 2>"$OUT/bench_train_${batch}_$2.log")
     torch=$("$PYTHON" bench/train_torch.py "${common[@]}" --device cuda)
     "$PYTHON" - "$burn" "$torch" <<'PY'
 import json, sys
@@ -129,6 +136,26 @@ print(f"batch {b['batch']} x {b['size']}², {b['params']:,} generator parameters
 PY
 done
 
+fi
+
+if want paper; then
+echo "## the paper preset (examples/train-paper.toml: 512², batch 64 in micro-batches of 8,"
+echo "## perceptual loss on) trained for $PAPER_STEPS steps on 3 rendered samples; time for 50k steps"
+"$lf" demo --out "$OUT/paper" --count 3 --size 512 --spp 8 --device gpu --train-steps 0 >&2
+sed -e 's|^dataset = .*|dataset = "paper/dataset"|' -e 's|^out = .*|out = "paper/train"|' \
+    -e "s|^steps = .*|steps = $PAPER_STEPS|" -e 's|^split = .*|split = "all"|' \
+    -e 's|^device = .*|device = "gpu"|' examples/train-paper.toml >"$OUT/paper.toml"
+rm -rf "$OUT/paper/train"
+"$lf" train "$OUT/paper.toml" >&2
+"$PYTHON" - "$OUT/paper/train/losses.jsonl" <<'PY'
+import json, statistics, sys
+steps = [json.loads(l) for l in open(sys.argv[1]) if l.strip()]
+rates = [s["samples_per_second"] for s in steps[2:]] or [s["samples_per_second"] for s in steps]
+rate = statistics.median(rates)
+hours = 50000 * 64 / rate / 3600
+print(f"paper preset: {rate:.2f} samples/s (median of steps {len(steps) - len(rates) + 1}..{len(steps)}), "
+      f"{64 / rate:.2f} s per step of 64; 50k steps: {hours:.1f} h on this GPU")
+PY
 fi
 
 if want pipeline; then
