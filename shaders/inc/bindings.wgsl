@@ -12,7 +12,7 @@ struct Params {
     num_lights: u32,
     tlas_node_offset: u32, // NO_NODE when the scene is empty
     scene_flags: u32,      // SCENE_HAS_LENS (some material is MAT_FLAG_CLEAR)
-    _pad0: u32,
+    tile_row_stride: u32,  // crates/render/src/tile_order.rs; 0 or 1 = image order
     _pad1: u32,
     _pad2: u32,
     cam_pos: vec4<f32>,

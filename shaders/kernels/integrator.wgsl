@@ -500,6 +500,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
     var p = 0u;
     var iterations = pc.sample_count;
     var job = NO_SLOT;
+    var pix = gid.xy;
     if (walks) {
         let k = lid + 64u * (wid.x + wid.y * nwg.x);
         if (k >= atomicLoad(&counters[1])) {
@@ -508,10 +509,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         job = bitcast<u32>(probe_in[queue_entry(k)].x);
         iterations = 1u;
     } else {
-        if (gid.x >= params.width || gid.y >= params.height) {
+        // Tile rows in a Weyl order on lavapipe, so that each thread's contiguous block of
+        // workgroups spreads over the image (crates/render/src/tile_order.rs).
+        let row = (wid.y * max(params.tile_row_stride, 1u)) % nwg.y;
+        pix = vec2<u32>(wid.x * 8u + (lid & 7u), row * 8u + (lid >> 3u));
+        if (pix.x >= params.width || pix.y >= params.height) {
             return;
         }
-        p = gid.y * params.width + gid.x;
+        p = pix.y * params.width + pix.x;
         if (pc.mode == STAGE_GATHER) {
             job_gather(p);
             return;
@@ -529,7 +534,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
             go = job_resume(job, &rng, &rays, &start);
         } else {
             rng = rng_init(p, s, params.seed);
-            start.ray = camera_ray(gid.xy, rng_next2(&rng));
+            start.ray = camera_ray(pix, rng_next2(&rng));
             start.throughput = vec3<f32>(1.0);
             if (pc.mode == STAGE_PATHS) {
                 defer_slot = i * pixels + p;

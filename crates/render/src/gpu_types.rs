@@ -31,7 +31,10 @@ pub struct Params {
     pub tlas_node_offset: u32,
     /// SCENE_HAS_LENS
     pub scene_flags: u32,
-    pub _pad: [u32; 3],
+    /// The integrator renders workgroup row r at tile row r × stride mod rows
+    /// (`tile_order.rs`); 0 or 1 keeps image order.
+    pub tile_row_stride: u32,
+    pub _pad: [u32; 2],
     pub cam_pos: [f32; 4],
     pub cam_right: [f32; 4],
     pub cam_up: [f32; 4],

@@ -17,6 +17,7 @@ use crate::schedule::{LightingSchedule, WalkSchedule};
 use crate::settings::camera_params;
 pub use crate::settings::{RenderSettings, MAX_LIGHTS, MAX_SIZE, MAX_SPP};
 use crate::shaders;
+use crate::tile_order::tile_row_stride;
 use crate::vulkan::{ComputeKernel, DeviceInfo, DeviceRequest, GpuBuffer, GpuContext};
 use crate::RenderError;
 
@@ -219,7 +220,12 @@ impl Renderer {
             num_lights: lights.len() as u32,
             tlas_node_offset: scene.tlas_node_offset,
             scene_flags: scene.scene_flags(),
-            _pad: [0; 3],
+            tile_row_stride: if self.ctx.is_cpu() {
+                tile_row_stride(h.div_ceil(8))
+            } else {
+                1
+            },
+            _pad: [0; 2],
             cam_pos,
             cam_right,
             cam_up,
