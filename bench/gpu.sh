@@ -6,7 +6,8 @@
 #      and 8 lightings) against separate renders on a dataset sample;
 #   2. training iterations/s of the relighting network, Burn's wgpu backend vs the same network
 #      in PyTorch CUDA (bench/train_torch.py), same run, same shapes, batch 1 and 8 at 256² and
-#      4 at 512²;
+#      4 at 512², in f32 and in half precision (bench_train --precision f16 / bf16 against
+#      PyTorch AMP, --amp f16 / bf16);
 #   3. the paper preset (examples/train-paper.toml) trained for PAPER_STEPS steps, and the time
 #      its 50k steps take at that rate;
 #   4. the whole pipeline on the GPU: a dataset rendered, a tiny network trained on it until it
@@ -119,17 +120,27 @@ fi
 
 if want train; then
 echo "## training: Burn wgpu vs PyTorch CUDA (same network, same shapes)"
-for shape in "1 256" "8 256" "4 512"; do
-    set -- $shape
-    batch=$1
+# f32 at every shape; half precision at the issue's two shapes. A precision the GPU backend
+# refuses (bf16 has no WGSL type) prints Burn's error and the loop goes on.
+for run in "1 256 f32" "8 256 f32" "4 512 f32" "8 256 f16" "4 512 f16" "8 256 bf16" "4 512 bf16"; do
+    set -- $run
+    batch=$1 precision=$3
     common=(--batch "$1" --size "$2" --widths 32,64,128,256,512 --iters 10 --warmup 3)
-    burn=$("$BIN/bench_train" "${common[@]}" --device gpu 2>"$OUT/bench_train_${batch}_$2.log")
-    torch=$("$PYTHON" bench/train_torch.py "${common[@]}" --device cuda)
+    amp=()
+    [ "$precision" = f32 ] || amp=(--amp "$precision")
+    log="$OUT/bench_train_${batch}_$2_$precision.log"
+    if ! burn=$("$BIN/bench_train" "${common[@]}" --device gpu --precision "$precision" 2>"$log"); then
+        echo "batch $1 x $2² $precision: bench_train failed: $(grep -m1 -i 'panicked\|error' "$log" || tail -1 "$log")"
+        continue
+    fi
+    torch=$("$PYTHON" bench/train_torch.py "${common[@]}" --device cuda "${amp[@]}")
     "$PYTHON" - "$burn" "$torch" <<'PY'
 import json, sys
 b, t = json.loads(sys.argv[1]), json.loads(sys.argv[2])
 assert b["params"] == t["params"], f"parameter counts differ: burn {b['params']} vs torch {t['params']}"
-print(f"batch {b['batch']} x {b['size']}², {b['params']:,} generator parameters: "
+torch_mode = f"AMP {t['amp']}" if t.get("amp") else "f32"
+print(f"batch {b['batch']} x {b['size']}², {b['params']:,} generator parameters, burn {b['precision']} "
+      f"({b['skipped_steps']} steps skipped on f16 overflow) vs pytorch {torch_mode}: "
       f"burn wgpu {b['seconds_per_iter_median']:.4f} s/iter, pytorch {t['device']} "
       f"{t['seconds_per_iter_median']:.4f} s/iter (torch {t['torch']}), "
       f"ratio burn/pytorch {t['seconds_per_iter_median'] / b['seconds_per_iter_median']:.2f}x")

@@ -337,6 +337,9 @@ def main():
     p.add_argument("--lr", type=float, default=1e-4)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--tf32", action="store_true", help="allow TF32 on CUDA (default: plain f32 like Burn)")
+    p.add_argument("--amp", choices=["f16", "bf16"], default=None,
+                   help="automatic mixed precision: autocast to this type, GradScaler for f16 "
+                        "(lightfarm's counterpart: bench_train --precision)")
     a = p.parse_args()
 
     widths = [int(w) for w in a.widths.split(",") if w.strip()]
@@ -373,21 +376,32 @@ def main():
         if device.type == "cuda":
             torch.cuda.synchronize()
 
+    amp_dtype = {"f16": torch.float16, "bf16": torch.bfloat16}.get(a.amp)
+    # One scaler for both optimisers, as lightfarm's trainer has one loss scale.
+    scaler = torch.amp.GradScaler(device.type, enabled=a.amp == "f16")
+
+    def autocast():
+        return torch.autocast(device_type=device.type, dtype=amp_dtype, enabled=amp_dtype is not None)
+
     def step():
         optim.zero_grad(set_to_none=True)
-        out = model(inp, targets["mask"], light)
-        loss = generator_loss(out, targets, critic)
+        with autocast():
+            out = model(inp, targets["mask"], light)
+            loss = generator_loss(out, targets, critic)
         total = loss.item()
         if not math.isfinite(total):
             sys.exit(f"generator loss diverged: {total}")
-        loss.backward()  # like Burn, this also fills the critic's grads; they are dropped below
-        optim.step()
+        # like Burn, this also fills the critic's grads; they are dropped below
+        scaler.scale(loss).backward()
 
         critic_optim.zero_grad(set_to_none=True)
-        c = critic_loss(critic, targets["relit"], out["relit"].detach(), targets["mask"])
+        with autocast():
+            c = critic_loss(critic, targets["relit"], out["relit"].detach(), targets["mask"])
         c.item()
-        c.backward()
-        critic_optim.step()
+        scaler.scale(c).backward()
+        scaler.step(optim)
+        scaler.step(critic_optim)
+        scaler.update()
         return total
 
     for _ in range(a.warmup):
@@ -410,6 +424,7 @@ def main():
         "size": a.size,
         "widths": widths,
         "render_net": a.render_net,
+        "amp": a.amp,
         "gan_width": a.gan_width,
         "threads": torch.get_num_threads(),
         "warmup": a.warmup,

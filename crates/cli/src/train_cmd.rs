@@ -28,6 +28,10 @@ pub struct TrainArgs {
     /// Override `device`: auto, cpu or gpu.
     #[arg(long, env = "LIGHTFARM_TRAIN_DEVICE")]
     pub device: Option<String>,
+    /// Override `precision`: f32, or f16 / bf16 for the convolutions (mixed precision with f32
+    /// weights; f16 with a dynamic loss scale). A trainer service reads it from the config.
+    #[arg(long, conflicts_with = "trainer")]
+    pub precision: Option<lightfarm_nets::Precision>,
     /// Submit to a trainer service (`lightfarm serve trainer`) instead of training here, and
     /// follow the job; `dataset` then names a folder export under the trainer's --datasets.
     #[arg(long, env = "LIGHTFARM_TRAINER")]
@@ -86,6 +90,9 @@ pub fn train(a: TrainArgs) -> Result<()> {
     }
     if let Some(d) = a.device {
         cfg.device = d;
+    }
+    if let Some(p) = a.precision {
+        cfg.precision = p;
     }
     cfg.token = a.token.clone();
     cfg.validate()

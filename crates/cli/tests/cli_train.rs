@@ -383,6 +383,7 @@ fn bad_input_is_an_error_naming_it() {
         .find(|p| p.extension().is_some_and(|e| e == "exr"))
         .expect("an exr");
     let e = exr.to_str().expect("utf8");
+    let c = cfg.to_str().expect("utf8");
     for (args, needle) in [
         (vec!["train", "no/such.toml"], "no/such.toml"),
         (
@@ -450,4 +451,24 @@ fn bad_input_is_an_error_naming_it() {
         assert!(!err.contains("panicked"), "{err}");
     }
     assert!(!out.exists());
+    // Usage errors (clap's exit code 2).
+    for (args, needle) in [
+        (vec!["train", c, "--precision", "f8"], "f8"),
+        (
+            vec![
+                "train",
+                c,
+                "--precision",
+                "f16",
+                "--trainer",
+                "http://127.0.0.1:1",
+            ],
+            "--trainer",
+        ),
+    ] {
+        let r = run(&args);
+        assert_eq!(r.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
 }

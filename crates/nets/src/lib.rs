@@ -2,14 +2,15 @@
 //! device-side light maps, the losses of section 4.2 (with the perceptual loss when the user
 //! supplies VGG16 weights), evaluation metrics (LPIPS likewise), and safetensors I/O.
 //!
-//! Tensors are NCHW f32. Networks are backend-agnostic: [`device::select`] picks Burn's flex
-//! CPU backend or wgpu.
+//! Tensors are NCHW f32; the convolutions can train in f16 or bf16 ([`precision`]). Networks
+//! are backend-agnostic: [`device::select`] picks Burn's flex CPU backend or wgpu.
 
 pub mod adapt;
 pub mod device;
 pub mod lightmap;
 pub mod loss;
 pub mod metrics;
+pub mod precision;
 pub mod relight;
 pub mod resnet;
 pub mod unet;
@@ -24,6 +25,7 @@ use burn::store::{ModuleSnapshot, SafetensorsStore};
 pub use adapt::{AdaptTarget, AdaptWeights, Adapter};
 pub use lightmap::{LightBatch, LightInput};
 pub use loss::{critic_loss, generator_loss, LossWeights, PatchGan, PatchGanConfig, Targets};
+pub use precision::{cast_module, Precision};
 pub use relight::{Decomposition, RelightConfig, RelightNet, Relit, RenderNet};
 pub use resnet::{ResNet, ResNetConfig, RESNET_SIZE_MULTIPLE};
 pub use vgg::{perceptual_loss, Lpips, Vgg16};

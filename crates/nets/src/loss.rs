@@ -8,6 +8,7 @@ use burn::prelude::*;
 use burn::tensor::activation::leaky_relu;
 use serde::{Deserialize, Serialize};
 
+use crate::precision::compute_in;
 use crate::relight::Relit;
 use crate::vgg::{perceptual_loss, Vgg16};
 
@@ -188,12 +189,15 @@ pub struct PatchGan {
 
 impl PatchGan {
     /// Per-patch realness scores [B, 1, H/8, W/8]; HDR input is compressed with x/(1+x).
+    /// Computes in its weights' precision and answers in `image`'s ([`crate::precision`]).
     pub fn forward(&self, image: Tensor<4>, mask: Tensor<4>) -> Tensor<4> {
         let image = image.clone().clamp_min(0.0) / image.clamp_min(0.0).add_scalar(1.0);
-        let mut x = Tensor::cat(vec![image, mask], 1);
-        for layer in &self.layers {
-            x = leaky_relu(layer.forward(x), 0.2);
-        }
-        self.head.forward(x)
+        let x = Tensor::cat(vec![image, mask], 1);
+        compute_in(x, self.head.weight.val().dtype(), |mut x| {
+            for layer in &self.layers {
+                x = leaky_relu(layer.forward(x), 0.2);
+            }
+            self.head.forward(x)
+        })
     }
 }

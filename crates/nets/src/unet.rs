@@ -9,6 +9,8 @@ use burn::tensor::activation::leaky_relu;
 use burn::tensor::module::{avg_pool2d, interpolate};
 use burn::tensor::ops::{AvgPoolOptions, InterpolateMode, InterpolateOptions};
 
+use crate::precision::compute_in;
+
 /// Negative slope of every hidden activation.
 const LEAK: f64 = 0.2;
 
@@ -84,7 +86,12 @@ impl UNet {
 
     /// `x`: [batch, in_channels, H, W] with H and W multiples of [`size_multiple`]; returns
     /// [batch, out_channels, H, W] without an output activation (each network picks its own).
+    /// Computes in its weights' precision and answers in `x`'s ([`crate::precision`]).
     pub fn forward(&self, x: Tensor<4>) -> Tensor<4> {
+        compute_in(x, self.head.weight.val().dtype(), |x| self.layers(x))
+    }
+
+    fn layers(&self, x: Tensor<4>) -> Tensor<4> {
         let mut skips = Vec::with_capacity(self.down.len());
         let mut x = x;
         for (level, block) in self.down.iter().enumerate() {

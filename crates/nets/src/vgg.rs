@@ -15,6 +15,7 @@ use burn::prelude::*;
 use burn::tensor::activation::relu;
 use burn::tensor::module::{conv2d, max_pool2d};
 use burn::tensor::ops::{ConvOptions, MaxPoolOptions};
+use burn::tensor::FloatDType;
 use safetensors::{Dtype, SafeTensors};
 
 use crate::NetsError;
@@ -181,9 +182,23 @@ impl Vgg16 {
         Ok(Vgg16 { convs })
     }
 
+    /// These weights in another precision ([`crate::precision`]).
+    pub fn cast(&self, dtype: FloatDType) -> Vgg16 {
+        let convs = self
+            .convs
+            .iter()
+            .map(|(w, b)| (w.clone().cast(dtype), b.clone().cast(dtype)))
+            .collect();
+        Vgg16 { convs }
+    }
+
     /// Activations at relu1_2, relu2_2, relu3_3, relu4_3 and relu5_3 of an input already
-    /// normalised the way the weights expect ([B, 3, H, W]).
-    pub fn features(&self, mut x: Tensor<4>) -> Vec<Tensor<4>> {
+    /// normalised the way the weights expect ([B, 3, H, W]). Computes in its weights' precision
+    /// and answers in `x`'s.
+    pub fn features(&self, x: Tensor<4>) -> Vec<Tensor<4>> {
+        let io = FloatDType::from(x.dtype());
+        let compute = self.convs.first().map_or(x.dtype(), |(w, _)| w.dtype());
+        let mut x = x.cast(FloatDType::from(compute));
         let mut taps = Vec::with_capacity(TAPS.len());
         for (i, (w, b)) in self.convs.iter().enumerate() {
             x = relu(conv2d(
@@ -193,7 +208,7 @@ impl Vgg16 {
                 ConvOptions::new([1, 1], [1, 1], [1, 1], 1),
             ));
             if TAPS.contains(&i) {
-                taps.push(x.clone());
+                taps.push(x.clone().cast(io));
                 if i + 1 < self.convs.len() {
                     x = max_pool2d(x, MaxPoolOptions::new([2, 2]));
                 }

@@ -3,7 +3,12 @@
 //! work `bench/train_torch.py` times in PyTorch. `bench/train-compare.sh` runs both.
 //!
 //! cargo run --release -p lightfarm-trainer --example bench_train -- \
-//!     --batch 2 --size 256 --widths 32,64,128,256,512 --iters 3 --warmup 1 [--device cpu|gpu]
+//!     --batch 2 --size 256 --widths 32,64,128,256,512 --iters 3 --warmup 1 [--device cpu|gpu] \
+//!     [--precision f32|f16|bf16]
+//!
+//! `--precision f16|bf16` runs the convolutions in half precision on cast copies of the weights,
+//! with f16's loss scale, as the trainer does (`precision` in train.toml); its PyTorch
+//! counterpart is `bench/train_torch.py --amp f16|bf16` (autocast and `GradScaler`).
 
 use std::time::Instant;
 
@@ -13,9 +18,10 @@ use lightfarm_light::{
     default_resolution, PrefilteredEnv, PrefilteredMap, ShRadiance, PHONG_EXPONENTS,
 };
 use lightfarm_nets::{
-    critic_loss, generator_loss, LightBatch, LightInput, LossWeights, PatchGanConfig,
-    RelightConfig, RenderNet, Targets,
+    cast_module, critic_loss, generator_loss, LightBatch, LightInput, LossWeights, PatchGan,
+    PatchGanConfig, Precision, RelightConfig, RenderNet, Targets,
 };
+use lightfarm_trainer::loss_scale::{unscale, LossScale};
 
 struct Rng(u64);
 
@@ -49,14 +55,20 @@ fn main() {
     let warmup: usize = arg(&args, "--warmup", 1);
     let iters: usize = arg(&args, "--iters", 3);
     let device_name: String = arg(&args, "--device", "cpu".to_string());
+    let precision: Precision = match arg(&args, "--precision", "f32".to_string()).as_str() {
+        "f16" => Precision::F16,
+        "bf16" => Precision::Bf16,
+        "f32" => Precision::F32,
+        other => panic!("--precision {other}: use f32, f16 or bf16"),
+    };
     let render_net = match arg(&args, "--render-net", "decomposed".to_string()).as_str() {
         "blackbox" => RenderNet::Blackbox,
         _ => RenderNet::Decomposed,
     };
 
-    let device = lightfarm_nets::device::select(&device_name)
-        .unwrap_or_else(|e| panic!("{e}"))
-        .autodiff();
+    let base = lightfarm_nets::device::select(&device_name).unwrap_or_else(|e| panic!("{e}"));
+    precision.check(&base).unwrap_or_else(|e| panic!("{e}"));
+    let device = base.autodiff();
     device.seed(0);
     let cfg = RelightConfig::new()
         .with_widths(widths.clone())
@@ -133,23 +145,51 @@ fn main() {
     let light = LightBatch::new(&items, &device).unwrap_or_else(|e| panic!("{e}"));
     let weights = LossWeights::default();
 
+    let mut scale = LossScale::new(precision);
+    let mut skipped = 0u32;
     let mut times = Vec::new();
     for i in 0..warmup + iters {
         let t0 = Instant::now();
-        let out = model.forward(input.clone(), targets.mask.clone(), &light);
-        let loss = generator_loss(&out, &targets, &weights, Some(&critic), None);
+        // The trainer's step (step.rs) without micro-batches: half-precision copies run the
+        // passes (cast afresh for each backward pass), the gradients land on the f32 weights.
+        let half = |c: &PatchGan| {
+            if precision.is_half() {
+                cast_module(c.clone(), precision.dtype())
+            } else {
+                c.clone()
+            }
+        };
+        let run_model = if precision.is_half() {
+            cast_module(model.clone(), precision.dtype())
+        } else {
+            model.clone()
+        };
+        let out = run_model.forward(input.clone(), targets.mask.clone(), &light);
+        let loss = generator_loss(&out, &targets, &weights, Some(&half(&critic)), None);
         let _ = loss.total.clone().into_scalar::<f32>();
-        let grads = GradientsParams::from_grads(loss.total.backward(), &model);
-        model = optim.step(1e-4, model, grads);
+        let backward = loss.total.mul_scalar(scale.scale).backward();
+        let mut grads = GradientsParams::from_grads(backward, &model);
         let c = critic_loss(
-            &critic,
+            &half(&critic),
             targets.relit.clone(),
             out.relit.detach(),
             targets.mask.clone(),
         );
         let _ = c.clone().into_scalar::<f32>();
-        let grads = GradientsParams::from_grads(c.backward(), &critic);
-        critic = critic_optim.step(1e-4, critic, grads);
+        let mut critic_grads =
+            GradientsParams::from_grads(c.mul_scalar(scale.scale).backward(), &critic);
+        let mut finite = true;
+        if scale.dynamic {
+            let inverse = 1.0 / f64::from(scale.scale);
+            finite &= unscale(&mut grads, &model, inverse);
+            finite &= unscale(&mut critic_grads, &critic, inverse);
+        }
+        if scale.update(finite) {
+            model = optim.step(1e-4, model, grads);
+            critic = critic_optim.step(1e-4, critic, critic_grads);
+        } else {
+            skipped += 1;
+        }
         let dt = t0.elapsed().as_secs_f64();
         eprintln!(
             "iteration {i}: {dt:.3} s{}",
@@ -176,6 +216,8 @@ fn main() {
             "seconds_per_iter_min": times[0],
             "iters_per_s": iters as f64 / total,
             "params": params,
+            "precision": precision.to_string(),
+            "skipped_steps": skipped,
         })
     );
 }

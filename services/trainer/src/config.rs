@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use lightfarm_nets::{LossWeights, RelightConfig, RenderNet};
+use lightfarm_nets::{LossWeights, Precision, RelightConfig, RenderNet};
 use serde::{Deserialize, Serialize};
 
 use crate::farm::FarmAddress;
@@ -47,6 +47,11 @@ pub struct TrainConfig {
     /// "auto", "cpu" or "gpu".
     #[serde(default = "default_device")]
     pub device: String,
+    /// "f32" (default), "f16" or "bf16": the precision the convolutions train in, as PyTorch's
+    /// automatic mixed precision does it (f32 weights and optimiser, f32 shading and losses; f16
+    /// with a dynamic loss scale). A run may resume in another precision.
+    #[serde(default)]
+    pub precision: Precision,
     /// Threads decoding samples ahead of the trainer.
     #[serde(default = "default_loader_threads")]
     pub loader_threads: usize,

@@ -14,6 +14,7 @@ pub mod farm;
 pub mod image_io;
 pub mod infer;
 pub mod lights;
+pub mod loss_scale;
 pub mod olat_sample;
 pub mod sample;
 pub mod sample_cache;

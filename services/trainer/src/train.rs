@@ -26,6 +26,7 @@ use crate::config::TrainConfig;
 use crate::data::{Dataset, PrefetchParams, Prefetcher};
 use crate::farm::{FarmAddress, FarmOptions, FarmSource, StreamState, STREAM_FILE};
 use crate::lights::LightCache;
+use crate::loss_scale::LossScale;
 use crate::step::{self, StepSpec};
 use crate::TrainError;
 
@@ -73,6 +74,9 @@ pub struct StepLog {
 struct CheckpointState {
     /// Steps completed: training resumes at this step.
     step: u64,
+    /// f16's loss scale; absent in f32/bf16 runs and in checkpoints from before precision.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    loss_scale: Option<LossScale>,
 }
 
 #[derive(Clone, Debug)]
@@ -102,6 +106,9 @@ pub fn train(
     fs::create_dir_all(cfg.out.join(CHECKPOINTS)).map_err(|e| TrainError::io(&cfg.out, e))?;
     check_run_file(cfg)?;
     let base = lightfarm_nets::device::select(&cfg.device)
+        .map_err(|e| TrainError::Config(e.to_string()))?;
+    cfg.precision
+        .check(&base)
         .map_err(|e| TrainError::Config(e.to_string()))?;
     let device = base.autodiff();
     let init_guard = SEED_LOCK.lock().unwrap_or_else(|p| p.into_inner());
@@ -133,9 +140,15 @@ pub fn train(
     let mut critic_optim = lightfarm_nets::optimizer();
     let mut start = 0u64;
     let mut resume_stream = None;
+    let mut scale = LossScale::new(cfg.precision);
     if let Some(dir) = latest_checkpoint(&cfg.out)? {
-        (model, critic, optim, critic_optim, start) =
+        let saved;
+        (model, critic, optim, critic_optim, start, saved) =
             load_checkpoint(&dir, model, critic, optim, critic_optim)?;
+        // A run that resumes in another precision starts that precision's scale afresh.
+        scale = saved
+            .filter(|s| s.dynamic == scale.dynamic)
+            .unwrap_or(scale);
         resume_stream = StreamState::load(&dir)?;
         tracing::info!(step = start, checkpoint = %dir.display(), "resuming");
     }
@@ -200,6 +213,8 @@ pub fn train(
                 adversarial: step >= cfg.net.adversarial_from && cfg.loss.adversarial > 0.0,
                 train_critic: cfg.loss.adversarial > 0.0,
                 vgg: vgg.as_ref(),
+                precision: cfg.precision,
+                loss_scale: scale.scale,
             },
         )?;
         let loss = grads.losses;
@@ -209,9 +224,25 @@ pub fn train(
                 loss: loss.total,
             });
         }
-        model = optim.step(cfg.lr, model, grads.model);
-        if let Some(g) = grads.critic {
-            critic = critic_optim.step(cfg.lr, critic, g);
+        let tried = scale.scale;
+        if scale.update(grads.finite) {
+            model = optim.step(cfg.lr, model, grads.model);
+            if let Some(g) = grads.critic {
+                critic = critic_optim.step(cfg.lr, critic, g);
+            }
+        } else if tried <= 1.0 {
+            // Overflow with nothing left to scale down: the gradients themselves blew up.
+            return Err(TrainError::Diverged {
+                step,
+                loss: f32::INFINITY,
+            });
+        } else {
+            tracing::warn!(
+                step = step + 1,
+                loss_scale = tried,
+                next = scale.scale,
+                "f16 gradients overflowed: step skipped, loss scale halved"
+            );
         }
         step += 1;
         let entry = StepLog {
@@ -246,6 +277,7 @@ pub fn train(
                 step,
                 (&model, &critic, &optim, &critic_optim),
                 stream.as_deref(),
+                scale.dynamic.then_some(scale),
                 cfg,
             )?;
             if grew {
@@ -359,6 +391,7 @@ fn save_checkpoint(
     step: u64,
     (model, critic, optim, critic_optim): Modules<'_>,
     stream: Option<&StreamState>,
+    loss_scale: Option<LossScale>,
     cfg: &TrainConfig,
 ) -> Result<PathBuf, TrainError> {
     let tmp = begin_checkpoint(out, step)?;
@@ -373,7 +406,8 @@ fn save_checkpoint(
         .map_err(|e| ck(format!("critic optimizer state: {e:?}")))?;
     let net = serde_json::to_vec_pretty(&cfg.net).map_err(|e| ck(e.to_string()))?;
     write_atomic(&tmp.join(NET_FILE), &net)?;
-    let state = serde_json::to_vec(&CheckpointState { step }).map_err(|e| ck(e.to_string()))?;
+    let state =
+        serde_json::to_vec(&CheckpointState { step, loss_scale }).map_err(|e| ck(e.to_string()))?;
     write_atomic(&tmp.join(STATE_FILE), &state)?;
     if let Some(stream) = stream {
         let bytes = serde_json::to_vec(stream).map_err(|e| ck(e.to_string()))?;
@@ -428,7 +462,17 @@ fn load_checkpoint(
     critic: PatchGan,
     optim: ModuleOptimizer,
     critic_optim: ModuleOptimizer,
-) -> Result<(RelightNet, PatchGan, ModuleOptimizer, ModuleOptimizer, u64), TrainError> {
+) -> Result<
+    (
+        RelightNet,
+        PatchGan,
+        ModuleOptimizer,
+        ModuleOptimizer,
+        u64,
+        Option<LossScale>,
+    ),
+    TrainError,
+> {
     let ck = |e: String| TrainError::Checkpoint(format!("{}: {e}", dir.display()));
     let model = load_weights(model, &dir.join(MODEL_FILE)).map_err(|e| ck(e.to_string()))?;
     let critic = load_weights(critic, &dir.join(CRITIC_FILE)).map_err(|e| ck(e.to_string()))?;
@@ -442,7 +486,14 @@ fn load_checkpoint(
         &fs::read(dir.join(STATE_FILE)).map_err(|e| TrainError::io(dir, e))?,
     )
     .map_err(|e| ck(format!("{STATE_FILE}: {e}")))?;
-    Ok((model, critic, optim, critic_optim, state.step))
+    Ok((
+        model,
+        critic,
+        optim,
+        critic_optim,
+        state.step,
+        state.loss_scale,
+    ))
 }
 
 /// Drops loss lines past `step` (any JSON line with a `step`): steps after the checkpoint are

@@ -204,6 +204,10 @@ fn bad_configs_are_refused_with_the_key() {
             "dataset = \"d\"\nout = \"o\"\nbatch = 8\nmicro_batch = 16\n",
             "divide batch",
         ),
+        (
+            "dataset = \"d\"\nout = \"o\"\nprecision = \"f8\"\n",
+            "precision",
+        ),
     ] {
         std::fs::write(&path, text).unwrap();
         let err = TrainConfig::load(&path).expect_err(text).to_string();
@@ -330,6 +334,54 @@ fn micro_batches_train_one_logged_step_each() {
     let log = lightfarm_trainer::train::read_losses(&cfg.out).unwrap();
     assert_eq!(log.iter().map(|l| l.step).collect::<Vec<_>>(), vec![1, 2]);
     assert!(log.iter().all(|l| l.total.is_finite() && l.total > 0.0));
+}
+
+/// Training in f16 (with its loss scale) and bf16 follows the f32 run's loss curve, and an f16
+/// checkpoint keeps the loss scale a resumed run continues from (step.rs checks the gradients).
+#[test]
+fn half_precision_runs_follow_the_f32_loss_curve() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |precision: lightfarm_nets::Precision| {
+        // Two steps: flex has no native half arithmetic (f16 ~3x slower than f32 here).
+        let mut cfg = config(
+            &tmp.path().join(precision.to_string()),
+            2,
+            RenderNet::Decomposed,
+        );
+        cfg.precision = precision;
+        lightfarm_trainer::train(
+            &cfg,
+            Catalog::builtin().unwrap(),
+            &mut (),
+            &AtomicBool::new(false),
+        )
+        .unwrap_or_else(|e| panic!("{precision}: {e}"));
+        (read_losses(&cfg.out).unwrap(), cfg.out)
+    };
+    let (full, _) = run(lightfarm_nets::Precision::F32);
+    for precision in [
+        lightfarm_nets::Precision::F16,
+        lightfarm_nets::Precision::Bf16,
+    ] {
+        let (half, out) = run(precision);
+        assert_eq!(half.len(), full.len(), "{precision}: one line per step");
+        for (a, b) in full.iter().zip(&half) {
+            assert!(
+                (a.total - b.total).abs() <= 0.05 * a.total,
+                "{precision} step {}: {} vs f32 {}",
+                a.step,
+                b.total,
+                a.total
+            );
+        }
+        let state =
+            std::fs::read_to_string(out.join("checkpoints/step-000000002/state.json")).unwrap();
+        assert_eq!(
+            state.contains("\"loss_scale\""),
+            precision == lightfarm_nets::Precision::F16,
+            "{precision}: {state}"
+        );
+    }
 }
 
 /// Random VGG16 + LPIPS weights in torchvision's / lpips's layout (the code cannot tell them
