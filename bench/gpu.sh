@@ -18,7 +18,8 @@
 #      bench sphere (`bench_scene` output) if it exists already.
 #      PYTHON = a python with torch and CUDA (default python3). STEPS = overfit steps (800).
 #      PAPER_STEPS = steps of the paper preset (6). ONLY = render, train, paper or pipeline
-#      runs that section alone.
+#      runs that section alone. FEATURES = gpu (default: Burn's wgpu backend) or gpu-vulkan
+#      (Burn's SPIR-V compiler, the tensor-core path for f16/bf16) for the builds here.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 OUT=${1:-out/gpu-bench}
@@ -29,8 +30,8 @@ mkdir -p "$OUT"
 OUT=$(cd "$OUT" && pwd)
 if [ -z "${BIN:-}" ]; then
     export CARGO_TARGET_DIR=${CARGO_TARGET_DIR:-$HOME/.cache/lightfarm-target}
-    cargo build --release --locked -p lightfarm --features gpu >&2
-    cargo build --release --locked -p lightfarm-trainer --example bench_train --features gpu >&2
+    cargo build --release --locked -p lightfarm --features "${FEATURES:-gpu}" >&2
+    cargo build --release --locked -p lightfarm-trainer --example bench_train --features "${FEATURES:-gpu}" >&2
     cargo build --release --locked -p lightfarm-render --example bench_scene >&2
     cargo build --release --locked -p lightfarm-subject --example lighting_cost >&2
     BIN=$OUT/bin

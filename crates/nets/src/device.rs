@@ -4,7 +4,8 @@ use burn::prelude::*;
 
 use crate::NetsError;
 
-/// `cpu` (Burn's pure-Rust flex backend), `gpu` (wgpu; needs the `gpu` feature) or `auto`
+/// `cpu` (Burn's pure-Rust flex backend), `gpu` (wgpu, or Vulkan with Burn's SPIR-V compiler
+/// under `gpu-vulkan`; needs the `gpu` feature and a hardware GPU) or `auto`
 /// (gpu when compiled in and a hardware GPU is present, else cpu: on a CPU-only machine wgpu
 /// would fall back to lavapipe, several times slower than flex). Training wraps the result in
 /// `.autodiff()`.
@@ -25,8 +26,21 @@ pub fn select(name: &str) -> Result<Device, NetsError> {
     }
 }
 
+/// The wgpu device, on a hardware GPU only: asked for `gpu` on a machine whose only adapter is
+/// lavapipe, wgpu would hand Burn's kernels to it (slower than flex, and Burn's SPIR-V kernels
+/// crash it), so that is refused.
 #[cfg(feature = "gpu")]
 fn gpu() -> Result<Device, NetsError> {
+    if !hardware_gpu() {
+        return Err(NetsError::Device(
+            "training device 'gpu': wgpu finds no hardware GPU here (a CPU Vulkan driver such as              lavapipe does not count); train with --device cpu, or check the GPU driver with              `vulkaninfo --summary`"
+                .into(),
+        ));
+    }
+    // `gpu-vulkan` pins Vulkan, so the SPIR-V compiler (tensor cores) does the kernels.
+    #[cfg(feature = "gpu-vulkan")]
+    return Ok(Device::vulkan(DeviceKind::DefaultDevice));
+    #[cfg(not(feature = "gpu-vulkan"))]
     Ok(Device::wgpu(DeviceKind::DefaultDevice))
 }
 

@@ -25,7 +25,7 @@ use burn::store::{ModuleSnapshot, SafetensorsStore};
 pub use adapt::{AdaptTarget, AdaptWeights, Adapter};
 pub use lightmap::{LightBatch, LightInput};
 pub use loss::{critic_loss, generator_loss, LossWeights, PatchGan, PatchGanConfig, Targets};
-pub use precision::{cast_module, Precision};
+pub use precision::{cast_module, in_precision, Precision};
 pub use relight::{Decomposition, RelightConfig, RelightNet, Relit, RenderNet};
 pub use resnet::{ResNet, ResNetConfig, RESNET_SIZE_MULTIPLE};
 pub use vgg::{perceptual_loss, Lpips, Vgg16};

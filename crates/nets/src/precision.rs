@@ -104,6 +104,17 @@ pub fn cast_module<M: Module>(module: M, dtype: FloatDType) -> M {
     module.map(&mut Cast(dtype))
 }
 
+/// A copy of `module` to run a pass in `precision`: cast for f16/bf16, as is for f32. Cast once
+/// per backward pass: the cast is part of that pass's graph, and Burn keeps no graph across a
+/// backward.
+pub fn in_precision<M: Module>(module: &M, precision: Precision) -> M {
+    if precision.is_half() {
+        cast_module(module.clone(), precision.dtype())
+    } else {
+        module.clone()
+    }
+}
+
 /// Runs `f` on `x` cast to `compute`, and casts its answer back to `x`'s precision: a network's
 /// weights set the precision it computes in, its caller's tensors the one it answers in.
 pub(crate) fn compute_in(

@@ -58,6 +58,12 @@ fn lavapipe_is_not_a_hardware_gpu() {
     }
     assert!(!hardware_gpu(), "adapters {kinds:?}");
     assert_eq!(select("auto").expect("auto"), Device::flex());
+    // Asked for by name, the GPU backend is refused rather than run on lavapipe.
+    let err = select("gpu").expect_err("no hardware GPU").to_string();
+    assert!(
+        err.contains("no hardware GPU") && err.contains("--device cpu"),
+        "{err}"
+    );
 }
 
 #[cfg(feature = "gpu")]

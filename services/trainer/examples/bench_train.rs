@@ -18,8 +18,8 @@ use lightfarm_light::{
     default_resolution, PrefilteredEnv, PrefilteredMap, ShRadiance, PHONG_EXPONENTS,
 };
 use lightfarm_nets::{
-    cast_module, critic_loss, generator_loss, LightBatch, LightInput, LossWeights, PatchGan,
-    PatchGanConfig, Precision, RelightConfig, RenderNet, Targets,
+    critic_loss, generator_loss, in_precision, LightBatch, LightInput, LossWeights, PatchGanConfig,
+    Precision, RelightConfig, RenderNet, Targets,
 };
 use lightfarm_trainer::loss_scale::{unscale, LossScale};
 
@@ -150,27 +150,22 @@ fn main() {
     let mut times = Vec::new();
     for i in 0..warmup + iters {
         let t0 = Instant::now();
-        // The trainer's step (step.rs) without micro-batches: half-precision copies run the
+        // The trainer's step (step.rs) without micro-batches: copies in the precision run the
         // passes (cast afresh for each backward pass), the gradients land on the f32 weights.
-        let half = |c: &PatchGan| {
-            if precision.is_half() {
-                cast_module(c.clone(), precision.dtype())
-            } else {
-                c.clone()
-            }
-        };
-        let run_model = if precision.is_half() {
-            cast_module(model.clone(), precision.dtype())
-        } else {
-            model.clone()
-        };
+        let run_model = in_precision(&model, precision);
         let out = run_model.forward(input.clone(), targets.mask.clone(), &light);
-        let loss = generator_loss(&out, &targets, &weights, Some(&half(&critic)), None);
+        let loss = generator_loss(
+            &out,
+            &targets,
+            &weights,
+            Some(&in_precision(&critic, precision)),
+            None,
+        );
         let _ = loss.total.clone().into_scalar::<f32>();
         let backward = loss.total.mul_scalar(scale.scale).backward();
         let mut grads = GradientsParams::from_grads(backward, &model);
         let c = critic_loss(
-            &half(&critic),
+            &in_precision(&critic, precision),
             targets.relit.clone(),
             out.relit.detach(),
             targets.mask.clone(),

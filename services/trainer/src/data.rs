@@ -28,6 +28,8 @@ const DECODED_CACHE: usize = 64;
 pub struct Dataset {
     source: Source,
     decoded: Mutex<HashMap<u64, Arc<SampleImages>>>,
+    /// Samples `decoded` may hold ([`DECODED_CACHE`] unless set).
+    decoded_limit: usize,
 }
 
 enum Source {
@@ -71,6 +73,7 @@ impl Dataset {
                 by_index,
             },
             decoded: Mutex::new(HashMap::new()),
+            decoded_limit: DECODED_CACHE,
         })
     }
 
@@ -79,7 +82,15 @@ impl Dataset {
         Dataset {
             source: Source::Farm(Box::new(source)),
             decoded: Mutex::new(HashMap::new()),
+            decoded_limit: DECODED_CACHE,
         }
+    }
+
+    /// Keeps at most `limit` decoded samples in memory; 0 decodes every draw, as training on a
+    /// dataset far larger than the cache does (`examples/bench_loader.rs` times that).
+    pub fn with_decoded_cache(mut self, limit: usize) -> Dataset {
+        self.decoded_limit = limit;
+        self
     }
 
     /// The sample indices training draws from until the next [`Self::refresh`], in a fixed
@@ -149,7 +160,7 @@ impl Dataset {
             }
         });
         if let Ok(mut c) = self.decoded.lock() {
-            if c.len() < DECODED_CACHE {
+            if c.len() < self.decoded_limit {
                 c.insert(index, images.clone());
             }
         }

@@ -11,7 +11,7 @@
 use burn::optim::{GradientsAccumulator, GradientsParams};
 use burn::prelude::*;
 use lightfarm_nets::{
-    cast_module, critic_loss, generator_loss, LossWeights, PatchGan, Precision, RelightNet, Vgg16,
+    critic_loss, generator_loss, in_precision, LossWeights, PatchGan, Precision, RelightNet, Vgg16,
 };
 
 use crate::data::{to_device, Example};
@@ -97,28 +97,15 @@ pub(crate) fn gradients(
             "a step needs at least one example".into(),
         ));
     }
-    // The passes run on half-precision copies; the gradients land on the f32 originals. A
-    // copy's cast belongs to the graph of the backward pass that consumes it, so each pass
-    // casts afresh (Burn keeps no graph across a backward).
-    let dtype = spec.precision.dtype();
-    let half = spec.precision.is_half();
-    let run = |m: &RelightNet| {
-        if half {
-            cast_module(m.clone(), dtype)
+    // The passes run on copies in the step's precision (`in_precision`, cast afresh for each
+    // backward pass); the gradients land on the f32 originals.
+    let vgg_run = spec.vgg.map(|v| {
+        if spec.precision.is_half() {
+            v.cast(spec.precision.dtype())
         } else {
-            m.clone()
+            v.clone()
         }
-    };
-    let run_critic = |c: &PatchGan| {
-        if half {
-            cast_module(c.clone(), dtype)
-        } else {
-            c.clone()
-        }
-    };
-    let vgg_run = spec
-        .vgg
-        .map(|v| if half { v.cast(dtype) } else { v.clone() });
+    });
 
     let chunks: Vec<&[Example]> = examples.chunks(spec.micro_batch).collect();
     let share = f64::from(spec.loss_scale) / chunks.len() as f64;
@@ -127,8 +114,14 @@ pub(crate) fn gradients(
     let mut parts = Vec::with_capacity(chunks.len());
     for chunk in &chunks {
         let batch = to_device(chunk, device)?;
-        let out = run(model).forward(batch.input, batch.targets.mask.clone(), &batch.light);
-        let judge = spec.adversarial.then(|| run_critic(critic));
+        let out = in_precision(model, spec.precision).forward(
+            batch.input,
+            batch.targets.mask.clone(),
+            &batch.light,
+        );
+        let judge = spec
+            .adversarial
+            .then(|| in_precision(critic, spec.precision));
         let loss = generator_loss(
             &out,
             &batch.targets,
@@ -152,7 +145,7 @@ pub(crate) fn gradients(
         model_grads.accumulate(model, GradientsParams::from_grads(grads, model));
         if spec.train_critic {
             let c = critic_loss(
-                &run_critic(critic),
+                &in_precision(critic, spec.precision),
                 batch.targets.relit,
                 out.relit.detach(),
                 batch.targets.mask,
