@@ -33,7 +33,9 @@ pub fn select(name: &str) -> Result<Device, NetsError> {
 fn gpu() -> Result<Device, NetsError> {
     if !hardware_gpu() {
         return Err(NetsError::Device(
-            "training device 'gpu': wgpu finds no hardware GPU here (a CPU Vulkan driver such as              lavapipe does not count); train with --device cpu, or check the GPU driver with              `vulkaninfo --summary`"
+            "training device 'gpu': wgpu finds no hardware GPU here (a CPU Vulkan driver such as \
+             lavapipe does not count); train with --device cpu, or check the GPU driver with \
+             `vulkaninfo --summary`"
                 .into(),
         ));
     }
