@@ -18,13 +18,8 @@ use lightfarm_scene::Catalog;
 use lightfarm_trainer::data::{Dataset, PrefetchParams, Prefetcher};
 use lightfarm_trainer::lights::LightCache;
 
-fn arg<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> T {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
+mod common;
+use common::arg;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();

@@ -12,6 +12,9 @@
 
 use std::time::Instant;
 
+mod common;
+use common::arg;
+
 use burn::optim::GradientsParams;
 use burn::prelude::*;
 use lightfarm_light::{
@@ -21,7 +24,7 @@ use lightfarm_nets::{
     critic_loss, generator_loss, in_precision, LightBatch, LightInput, LossWeights, PatchGanConfig,
     Precision, RelightConfig, RenderNet, Targets,
 };
-use lightfarm_trainer::loss_scale::{unscale, LossScale};
+use lightfarm_trainer::loss_scale::LossScale;
 
 struct Rng(u64);
 
@@ -33,14 +36,6 @@ impl Rng {
             .wrapping_add(1442695040888963407);
         ((self.0 >> 40) as f32) / (1u64 << 24) as f32
     }
-}
-
-fn arg<T: std::str::FromStr>(args: &[String], name: &str, default: T) -> T {
-    args.iter()
-        .position(|a| a == name)
-        .and_then(|i| args.get(i + 1))
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
 }
 
 fn main() {
@@ -55,12 +50,9 @@ fn main() {
     let warmup: usize = arg(&args, "--warmup", 1);
     let iters: usize = arg(&args, "--iters", 3);
     let device_name: String = arg(&args, "--device", "cpu".to_string());
-    let precision: Precision = match arg(&args, "--precision", "f32".to_string()).as_str() {
-        "f16" => Precision::F16,
-        "bf16" => Precision::Bf16,
-        "f32" => Precision::F32,
-        other => panic!("--precision {other}: use f32, f16 or bf16"),
-    };
+    let precision: Precision = arg(&args, "--precision", "f32".to_string())
+        .parse()
+        .unwrap_or_else(|e| panic!("--precision: {e}"));
     let render_net = match arg(&args, "--render-net", "decomposed".to_string()).as_str() {
         "blackbox" => RenderNet::Blackbox,
         _ => RenderNet::Decomposed,
@@ -173,12 +165,7 @@ fn main() {
         let _ = c.clone().into_scalar::<f32>();
         let mut critic_grads =
             GradientsParams::from_grads(c.mul_scalar(scale.scale).backward(), &critic);
-        let mut finite = true;
-        if scale.dynamic {
-            let inverse = 1.0 / f64::from(scale.scale);
-            finite &= unscale(&mut grads, &model, inverse);
-            finite &= unscale(&mut critic_grads, &critic, inverse);
-        }
+        let finite = scale.unscale(&mut grads, &model) & scale.unscale(&mut critic_grads, &critic);
         if scale.update(finite) {
             model = optim.step(1e-4, model, grads);
             critic = critic_optim.step(1e-4, critic, critic_grads);

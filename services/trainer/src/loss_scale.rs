@@ -56,6 +56,12 @@ impl LossScale {
         }
         finite
     }
+
+    /// Divides `module`'s gradients in `grads` by the scale where it is dynamic; returns whether
+    /// they are all finite (always true where it is not: nothing was scaled to overflow).
+    pub fn unscale<M: Module>(&self, grads: &mut GradientsParams, module: &M) -> bool {
+        !self.dynamic || unscale(grads, module, 1.0 / f64::from(self.scale))
+    }
 }
 
 /// Divides every gradient of `module` in `grads` by the loss scale (`inverse` = 1 / scale);

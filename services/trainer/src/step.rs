@@ -15,7 +15,7 @@ use lightfarm_nets::{
 };
 
 use crate::data::{to_device, Example};
-use crate::loss_scale::unscale;
+use crate::loss_scale::LossScale;
 use crate::TrainError;
 
 /// What a step needs besides the networks.
@@ -30,9 +30,9 @@ pub(crate) struct StepSpec<'a> {
     pub vgg: Option<&'a Vgg16>,
     /// The precision the convolutions run in (`nets::precision`); the weights stay f32.
     pub precision: Precision,
-    /// The losses are multiplied by this before the backward pass and the gradients divided by
-    /// it after (`loss_scale.rs`); 1 outside f16.
-    pub loss_scale: f32,
+    /// The losses are multiplied by its scale before the backward pass and the gradients
+    /// divided by it after (`loss_scale.rs`); 1 and fixed outside f16.
+    pub loss_scale: LossScale,
 }
 
 /// The step's losses, each the mean over its micro-batches (what `losses.jsonl` records).
@@ -108,7 +108,7 @@ pub(crate) fn gradients(
     });
 
     let chunks: Vec<&[Example]> = examples.chunks(spec.micro_batch).collect();
-    let share = f64::from(spec.loss_scale) / chunks.len() as f64;
+    let share = f64::from(spec.loss_scale.scale) / chunks.len() as f64;
     let mut model_grads = GradientsAccumulator::<RelightNet>::new();
     let mut critic_grads = GradientsAccumulator::<PatchGan>::new();
     let mut parts = Vec::with_capacity(chunks.len());
@@ -156,15 +156,11 @@ pub(crate) fn gradients(
         }
         parts.push(part);
     }
-    let mut finite = true;
     let mut model_grads = model_grads.grads();
     let mut critic_grads = spec.train_critic.then(|| critic_grads.grads());
-    if spec.loss_scale != 1.0 {
-        let inverse = 1.0 / f64::from(spec.loss_scale);
-        finite &= unscale(&mut model_grads, model, inverse);
-        if let Some(g) = critic_grads.as_mut() {
-            finite &= unscale(g, critic, inverse);
-        }
+    let mut finite = spec.loss_scale.unscale(&mut model_grads, model);
+    if let Some(g) = critic_grads.as_mut() {
+        finite &= spec.loss_scale.unscale(g, critic);
     }
     Ok(StepGrads {
         model: model_grads,
@@ -266,7 +262,15 @@ mod tests {
             train_critic: true,
             vgg: None,
             precision: Precision::F32,
-            loss_scale: 1.0,
+            loss_scale: LossScale::new(Precision::F32),
+        }
+    }
+
+    /// `precision`'s loss scale set to `scale`.
+    fn scaled(precision: Precision, scale: f32) -> LossScale {
+        LossScale {
+            scale,
+            ..LossScale::new(precision)
         }
     }
 
@@ -379,7 +383,7 @@ mod tests {
         {
             let s = StepSpec {
                 precision,
-                loss_scale: scale,
+                loss_scale: scaled(precision, scale),
                 ..spec(1, &weights)
             };
             let half = gradients(&model, &critic, &examples, &device, &s).expect("half");
@@ -410,14 +414,14 @@ mod tests {
         let weights = LossWeights::default();
         let s = StepSpec {
             precision: Precision::F16,
-            loss_scale: 1e30,
+            loss_scale: scaled(Precision::F16, 1e30),
             ..spec(1, &weights)
         };
         let g = gradients(&model, &critic, &[example(16, 0)], &device, &s).expect("step");
         assert!(!g.finite);
         let s = StepSpec {
             precision: Precision::F16,
-            loss_scale: 2.0,
+            loss_scale: scaled(Precision::F16, 2.0),
             ..spec(1, &weights)
         };
         let g = gradients(&model, &critic, &[example(16, 0)], &device, &s).expect("step");

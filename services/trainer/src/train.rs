@@ -214,7 +214,7 @@ pub fn train(
                 train_critic: cfg.loss.adversarial > 0.0,
                 vgg: vgg.as_ref(),
                 precision: cfg.precision,
-                loss_scale: scale.scale,
+                loss_scale: scale,
             },
         )?;
         let loss = grads.losses;
