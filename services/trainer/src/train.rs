@@ -143,10 +143,27 @@ pub fn train(
     let mut scale = LossScale::new(cfg.precision);
     if let Some(dir) = latest_checkpoint(&cfg.out)? {
         let saved;
-        (model, critic, optim, critic_optim, start, saved) =
-            load_checkpoint(&dir, model, critic, optim, critic_optim)?;
+        (
+            Trainable {
+                model,
+                critic,
+                optim,
+                critic_optim,
+            },
+            saved,
+        ) = load_checkpoint(
+            &dir,
+            Trainable {
+                model,
+                critic,
+                optim,
+                critic_optim,
+            },
+        )?;
+        start = saved.step;
         // A run that resumes in another precision starts that precision's scale afresh.
         scale = saved
+            .loss_scale
             .filter(|s| s.dynamic == scale.dynamic)
             .unwrap_or(scale);
         resume_stream = StreamState::load(&dir)?;
@@ -455,45 +472,41 @@ pub(crate) fn publish_checkpoint(
     Ok(dir)
 }
 
-#[allow(clippy::type_complexity)]
-fn load_checkpoint(
-    dir: &Path,
+/// What a checkpoint restores besides its `state.json`: the weights and both optimizers.
+struct Trainable {
     model: RelightNet,
     critic: PatchGan,
     optim: ModuleOptimizer,
     critic_optim: ModuleOptimizer,
-) -> Result<
-    (
-        RelightNet,
-        PatchGan,
-        ModuleOptimizer,
-        ModuleOptimizer,
-        u64,
-        Option<LossScale>,
-    ),
-    TrainError,
-> {
+}
+
+fn load_checkpoint(
+    dir: &Path,
+    nets: Trainable,
+) -> Result<(Trainable, CheckpointState), TrainError> {
     let ck = |e: String| TrainError::Checkpoint(format!("{}: {e}", dir.display()));
-    let model = load_weights(model, &dir.join(MODEL_FILE)).map_err(|e| ck(e.to_string()))?;
-    let critic = load_weights(critic, &dir.join(CRITIC_FILE)).map_err(|e| ck(e.to_string()))?;
-    let optim = optim
+    let model = load_weights(nets.model, &dir.join(MODEL_FILE)).map_err(|e| ck(e.to_string()))?;
+    let critic =
+        load_weights(nets.critic, &dir.join(CRITIC_FILE)).map_err(|e| ck(e.to_string()))?;
+    let optim = nets
+        .optim
         .load(dir.join(OPTIM_FILE))
         .map_err(|e| ck(format!("optimizer state: {e:?}")))?;
-    let critic_optim = critic_optim
+    let critic_optim = nets
+        .critic_optim
         .load(dir.join(CRITIC_OPTIM_FILE))
         .map_err(|e| ck(format!("critic optimizer state: {e:?}")))?;
     let state: CheckpointState = serde_json::from_slice(
         &fs::read(dir.join(STATE_FILE)).map_err(|e| TrainError::io(dir, e))?,
     )
     .map_err(|e| ck(format!("{STATE_FILE}: {e}")))?;
-    Ok((
+    let nets = Trainable {
         model,
         critic,
         optim,
         critic_optim,
-        state.step,
-        state.loss_scale,
-    ))
+    };
+    Ok((nets, state))
 }
 
 /// Drops loss lines past `step` (any JSON line with a `step`): steps after the checkpoint are
