@@ -1,0 +1,186 @@
+//! `scripts/prune-target.sh` on a made-up target dir. It deletes files in a directory that
+//! holds every build of the suite, so what it keeps matters as much as what it frees: a test
+//! whose executable it took by mistake would be rebuilt on every CI run.
+
+use std::fs;
+use std::os::unix::fs::PermissionsExt;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, SystemTime};
+
+/// Writes `name` in `deps` with `len` bytes, mode `exec`, modified `age_s` seconds ago, and a
+/// dep-info file naming `root` as the target's root source when there is one.
+fn artifact(deps: &Path, name: &str, len: usize, exec: bool, age_s: u64, root: Option<&str>) {
+    let path = deps.join(name);
+    fs::write(&path, vec![0u8; len]).unwrap();
+    let mode = if exec { 0o755 } else { 0o644 };
+    fs::set_permissions(&path, fs::Permissions::from_mode(mode)).unwrap();
+    let when = SystemTime::now() - Duration::from_secs(age_s);
+    fs::File::options()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_modified(when)
+        .unwrap();
+    if let Some(root) = root {
+        let d = format!("{}: {root} /w/crates/x/src/other.rs\n", path.display());
+        fs::write(deps.join(format!("{name}.d")), d).unwrap();
+    }
+}
+
+fn script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/prune-target.sh")
+}
+
+#[test]
+fn superseded_executables_and_incremental_caches_go_and_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let deps = dir.path().join("debug/deps");
+    fs::create_dir_all(&deps).unwrap();
+    fs::create_dir_all(dir.path().join("debug/incremental/render-1")).unwrap();
+    fs::write(
+        dir.path().join("debug/incremental/render-1/q.bin"),
+        vec![0u8; 4 << 20],
+    )
+    .unwrap();
+    let render = Some("/a/crates/render/tests/traversal.rs");
+    // The same test built twice (an older build under another clone's path): the older goes.
+    artifact(
+        &deps,
+        "traversal-00000000000000aa",
+        3 << 20,
+        true,
+        7200,
+        Some("/old/clone/crates/render/tests/traversal.rs"),
+    );
+    artifact(
+        &deps,
+        "traversal-00000000000000bb",
+        1 << 20,
+        true,
+        60,
+        render,
+    );
+    // A test of the same name in another crate stays.
+    artifact(
+        &deps,
+        "traversal-00000000000000cc",
+        1 << 20,
+        true,
+        7200,
+        Some("/a/crates/scene/tests/traversal.rs"),
+    );
+    // A crate's lib and bin unit tests share a name; both stay.
+    artifact(
+        &deps,
+        "lightfarm-00000000000000dd",
+        1 << 10,
+        true,
+        7200,
+        Some("/a/crates/cli/src/lib.rs"),
+    );
+    artifact(
+        &deps,
+        "lightfarm-00000000000000ee",
+        1 << 10,
+        true,
+        60,
+        Some("/a/crates/cli/src/main.rs"),
+    );
+    // Libraries of one crate built twice (build scripts and target) stay, as do shared objects.
+    artifact(
+        &deps,
+        "libserde-00000000000000aa.rlib",
+        1 << 10,
+        false,
+        7200,
+        None,
+    );
+    artifact(
+        &deps,
+        "libserde-00000000000000bb.rlib",
+        1 << 10,
+        false,
+        60,
+        None,
+    );
+    artifact(
+        &deps,
+        "libserde_derive-00000000000000aa.so",
+        1 << 10,
+        true,
+        7200,
+        None,
+    );
+    artifact(
+        &deps,
+        "libserde_derive-00000000000000bb.so",
+        1 << 10,
+        true,
+        60,
+        None,
+    );
+
+    let out = Command::new("bash")
+        .arg(script())
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // 3 MiB of the old executable and 4 MiB of incremental cache.
+    assert!(stdout.contains("freed 7 MiB"), "{stdout}");
+
+    let mut left: Vec<String> = fs::read_dir(&deps)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(
+        left,
+        [
+            "libserde-00000000000000aa.rlib",
+            "libserde-00000000000000bb.rlib",
+            "libserde_derive-00000000000000aa.so",
+            "libserde_derive-00000000000000bb.so",
+            "lightfarm-00000000000000dd",
+            "lightfarm-00000000000000dd.d",
+            "lightfarm-00000000000000ee",
+            "lightfarm-00000000000000ee.d",
+            "traversal-00000000000000bb",
+            "traversal-00000000000000bb.d",
+            "traversal-00000000000000cc",
+            "traversal-00000000000000cc.d",
+        ]
+    );
+    assert!(!dir.path().join("debug/incremental").exists());
+
+    // A second run finds nothing more to free.
+    let again = Command::new("bash")
+        .arg(script())
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&again.stdout).contains("freed 0 MiB"));
+}
+
+#[test]
+fn a_target_dir_that_does_not_exist_yet_is_made_not_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let target = dir.path().join("fresh");
+    let out = Command::new("bash")
+        .arg(script())
+        .arg(&target)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(target.is_dir());
+}
