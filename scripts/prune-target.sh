@@ -10,6 +10,9 @@
 # root source file (from the executable's dep-info): a crate's lib and bin tests, or two
 # packages' tests/device.rs, share a name. Libraries stay, since one crate can be built twice on
 # purpose (for build scripts and for the target).
+# A change to Cargo.toml's [profile.*] sections gives every artifact a new hash, so the whole
+# old build is garbage that would sit beside the new one: the profiles' hash is kept in the
+# target dir, and when it differs (or was never written) the debug build goes whole.
 set -euo pipefail
 dir="${1:-${CARGO_TARGET_DIR:-$HOME/.cache/lightfarm-target}}"
 # A cold build of the suite filled 4.9 GB (`du -sh` of a fresh target dir, 2026-12-05), plus
@@ -24,6 +27,15 @@ remove() {
     rm -rf -- "$1"
     freed_kib=$((freed_kib + kib))
 }
+
+manifest="$(dirname "${BASH_SOURCE[0]}")/../Cargo.toml"
+profiles=$(awk '/^\[/ { p = /^\[profile/ } p && NF && !/^[[:space:]]*#/' "$manifest" | sha256sum | cut -d' ' -f1)
+stamp="$dir/.lightfarm-profiles"
+if [ -d "$dir/debug" ] && [ "$(cat "$stamp" 2>/dev/null)" != "$profiles" ]; then
+    echo "prune-target: Cargo.toml's profiles changed since $dir was built: removing its debug build"
+    remove "$dir/debug"
+fi
+echo "$profiles" > "$stamp"
 
 for profile in debug release; do
     [ -d "$dir/$profile/incremental" ] && remove "$dir/$profile/incremental"

@@ -1,4 +1,4 @@
-//! `scripts/prune-target.sh` on a made-up target dir. It deletes files in a directory that
+//! `scripts/prune-target.sh` on made-up target dirs. It deletes files in a directory that
 //! holds every build of the suite, so what it keeps matters as much as what it frees: a test
 //! whose executable it took by mistake would be rebuilt on every CI run.
 
@@ -16,12 +16,8 @@ fn artifact(deps: &Path, name: &str, len: usize, exec: bool, age_s: u64, root: O
     let mode = if exec { 0o755 } else { 0o644 };
     fs::set_permissions(&path, fs::Permissions::from_mode(mode)).unwrap();
     let when = SystemTime::now() - Duration::from_secs(age_s);
-    fs::File::options()
-        .write(true)
-        .open(&path)
-        .unwrap()
-        .set_modified(when)
-        .unwrap();
+    let file = fs::File::options().write(true).open(&path).unwrap();
+    file.set_modified(when).unwrap();
     if let Some(root) = root {
         let d = format!("{}: {root} /w/crates/x/src/other.rs\n", path.display());
         fs::write(deps.join(format!("{name}.d")), d).unwrap();
@@ -32,61 +28,63 @@ fn script() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/prune-target.sh")
 }
 
+/// Runs the script on `dir` and returns what it printed; it must succeed.
+fn prune(dir: &Path) -> String {
+    let out = Command::new("bash")
+        .arg(script())
+        .arg(dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stdout}{stderr}");
+    stdout
+}
+
 #[test]
 fn superseded_executables_and_incremental_caches_go_and_nothing_else() {
     let dir = tempfile::tempdir().unwrap();
+    // The first run on an empty dir records the profiles, as before a CI run's cold build.
+    prune(dir.path());
     let deps = dir.path().join("debug/deps");
     fs::create_dir_all(&deps).unwrap();
-    fs::create_dir_all(dir.path().join("debug/incremental/render-1")).unwrap();
-    fs::write(
-        dir.path().join("debug/incremental/render-1/q.bin"),
-        vec![0u8; 4 << 20],
-    )
-    .unwrap();
-    let render = Some("/a/crates/render/tests/traversal.rs");
-    // The same test built twice (an older build under another clone's path): the older goes.
+    let cache = dir.path().join("debug/incremental/render-1");
+    fs::create_dir_all(&cache).unwrap();
+    fs::write(cache.join("q.bin"), vec![0u8; 4 << 20]).unwrap();
+    // The same test built twice (the older in another clone): the older goes.
+    let old_root = Some("/old/clone/crates/render/tests/traversal.rs");
     artifact(
         &deps,
         "traversal-00000000000000aa",
         3 << 20,
         true,
         7200,
-        Some("/old/clone/crates/render/tests/traversal.rs"),
+        old_root,
     );
-    artifact(
-        &deps,
-        "traversal-00000000000000bb",
-        1 << 20,
-        true,
-        60,
-        render,
-    );
+    let root = Some("/a/crates/render/tests/traversal.rs");
+    artifact(&deps, "traversal-00000000000000bb", 1 << 20, true, 60, root);
     // A test of the same name in another crate stays.
+    let other = Some("/a/crates/scene/tests/traversal.rs");
     artifact(
         &deps,
         "traversal-00000000000000cc",
         1 << 20,
         true,
         7200,
-        Some("/a/crates/scene/tests/traversal.rs"),
+        other,
     );
     // A crate's lib and bin unit tests share a name; both stay.
+    let lib = Some("/a/crates/cli/src/lib.rs");
     artifact(
         &deps,
         "lightfarm-00000000000000dd",
         1 << 10,
         true,
         7200,
-        Some("/a/crates/cli/src/lib.rs"),
+        lib,
     );
-    artifact(
-        &deps,
-        "lightfarm-00000000000000ee",
-        1 << 10,
-        true,
-        60,
-        Some("/a/crates/cli/src/main.rs"),
-    );
+    let bin = Some("/a/crates/cli/src/main.rs");
+    artifact(&deps, "lightfarm-00000000000000ee", 1 << 10, true, 60, bin);
     // Libraries of one crate built twice (build scripts and target) stay, as do shared objects.
     artifact(
         &deps,
@@ -121,20 +119,9 @@ fn superseded_executables_and_incremental_caches_go_and_nothing_else() {
         None,
     );
 
-    let out = Command::new("bash")
-        .arg(script())
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = prune(dir.path());
     // 3 MiB of the old executable and 4 MiB of incremental cache.
     assert!(stdout.contains("freed 7 MiB"), "{stdout}");
-
     let mut left: Vec<String> = fs::read_dir(&deps)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -158,29 +145,50 @@ fn superseded_executables_and_incremental_caches_go_and_nothing_else() {
         ]
     );
     assert!(!dir.path().join("debug/incremental").exists());
-
     // A second run finds nothing more to free.
-    let again = Command::new("bash")
-        .arg(script())
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(String::from_utf8_lossy(&again.stdout).contains("freed 0 MiB"));
+    assert!(prune(dir.path()).contains("freed 0 MiB"));
+}
+
+#[test]
+fn a_build_under_other_profiles_goes_whole() {
+    for stamp in [None, Some("a hash of other profiles\n")] {
+        let dir = tempfile::tempdir().unwrap();
+        let deps = dir.path().join("debug/deps");
+        fs::create_dir_all(&deps).unwrap();
+        artifact(
+            &deps,
+            "libserde-00000000000000aa.rlib",
+            2 << 20,
+            false,
+            60,
+            None,
+        );
+        if let Some(stamp) = stamp {
+            fs::write(dir.path().join(".lightfarm-profiles"), stamp).unwrap();
+        }
+        let stdout = prune(dir.path());
+        assert!(stdout.contains("profiles changed"), "{stdout}");
+        assert!(stdout.contains("freed 2 MiB"), "{stdout}");
+        assert!(!dir.path().join("debug").exists());
+        // Built again under these profiles, it stays.
+        fs::create_dir_all(&deps).unwrap();
+        artifact(
+            &deps,
+            "libserde-00000000000000bb.rlib",
+            1 << 10,
+            false,
+            60,
+            None,
+        );
+        assert!(!prune(dir.path()).contains("profiles changed"));
+        assert!(deps.join("libserde-00000000000000bb.rlib").exists());
+    }
 }
 
 #[test]
 fn a_target_dir_that_does_not_exist_yet_is_made_not_refused() {
     let dir = tempfile::tempdir().unwrap();
     let target = dir.path().join("fresh");
-    let out = Command::new("bash")
-        .arg(script())
-        .arg(&target)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    prune(&target);
     assert!(target.is_dir());
 }
