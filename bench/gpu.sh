@@ -89,10 +89,12 @@ PY
     done
 done
 
-echo "## traversal counters: the ICT heads against the other heads (the 35x open problem)"
-# Same scenes, cameras and seeds as tests/traversal_counters.rs counts on lavapipe: if the
-# counts per ray match lavapipe's here, the slowdown is not the traversal's work but how the
-# device runs it; if they differ, the heat maps show where.
+echo "## traversal counters: the ICT heads against the other heads (35x slower on an H100 before"
+echo "## the tangent fix of 2026-12-05)"
+# Same scenes, cameras and seeds as tests/traversal_counters.rs counts on lavapipe. Mesa 26's
+# lavapipe reproduced the slowdown (NaN shading frames on the eyes, meshes without UVs, where
+# denormals flush to zero; NaN rays then entered every box): expect 0 non-finite rays and the
+# ICT heads within 2x of the others' counts and time per ray.
 for head in LeePerrySmith_textured mh_head_01_f_young_caucasian ict_head_seed7_1 ict_head_seed7_2; do
     for mode in plain counters; do
         extra=()
@@ -109,7 +111,8 @@ t = counted["traversal"]
 print(f"{head}: {plain['seconds']:.2f} s, {plain['rays_per_second'] / 1e6:.2f} M rays/s "
       f"({counted['seconds']:.2f} s counting); per ray {t['nodes_per_ray']:.2f} node tests, "
       f"{t['prims_per_ray']:.2f} primitive tests, {t['blas_per_ray']:.2f} BLAS entries; "
-      f"deepest stack {t['max_depth']}, {t['overflows']} overflows")
+      f"deepest stack {t['max_depth']}, {t['overflows']} overflows, "
+      f"{t.get('nonfinite', 'n/a')} non-finite rays")
 PY
 done
 
@@ -173,8 +176,8 @@ fi
 if want pipeline; then
 echo "## pipeline on the GPU: render, overfit $STEPS steps, eval"
 start=$(date +%s.%N)
-# Three samples: the demo spec's index 3 onwards use the ICT head, which renders ~35x slower
-# per ray on NVIDIA than on lavapipe (open problem, see BENCHMARKS.md).
+# Three samples: the demo spec's index 3 onwards use the ICT head, which rendered ~35x slower
+# per ray on NVIDIA than on lavapipe before the tangent fix (BENCHMARKS.md).
 "$lf" demo --out "$OUT/demo" --count 3 --size 64 --spp 64 --device gpu --train-steps 0 >&2
 echo "rendered and exported 3 samples (64², 64 spp) in $("$PYTHON" -c "import time; print(f'{time.time() - $start:.1f}')") s"
 cat >"$OUT/overfit.toml" <<EOF

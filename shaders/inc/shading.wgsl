@@ -77,7 +77,12 @@ fn shade_hit(ray: Ray, hit: Hit) -> ShadingPoint {
         ns_obj = cross(v1 - v0, v2 - v0);
     }
     var ns = normalize(transform_dir(nt, ns_obj));
-    let tangent = normalize(transform_dir(inst.obj_to_world, a4.xyz + vec3<f32>(1e-20)));
+    // A mesh without UVs has all-zero tangents: the frame then comes from the normal alone.
+    // (Not `normalize(t + 1e-20)`: its squared length is a denormal, which llvmpipe with LLVM 19
+    // and NVIDIA flush to zero, and the frame became NaN, and with it every later ray.)
+    let t_world = transform_dir(inst.obj_to_world, a4.xyz);
+    let t_len2 = dot(t_world, t_world);
+    let tangent = select(vec3<f32>(0.0), normalize(t_world), t_len2 > 1e-30);
 
     // Face the incoming ray; the shading normal follows the geometric side.
     let from_back = dot(ng, ray.dir) > 0.0;

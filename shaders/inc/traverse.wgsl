@@ -35,6 +35,7 @@ var<private> tc_prims: u32;     // triangle or fibre-segment tests
 var<private> tc_blas: u32;      // BLAS entries (instances whose box a ray reached)
 var<private> tc_depth: u32;     // deepest traversal stack (BLAS or TLAS entries)
 var<private> tc_overflow: u32;  // pushes onto a full stack (a subtree lost)
+var<private> tc_nonfinite: u32; // rays with a NaN or infinite origin or direction
 
 fn tc_push(sp: u32, cap: u32) {
     if (TRAVERSAL_COUNTERS) {
@@ -404,6 +405,16 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
 // Walks the TLAS; each leaf is an instance (TLAS primitive i = instance i after the host's
 // reordering), whose BLAS is traversed with the ray moved into object space.
 fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
+    // A ray with a NaN or infinite origin or direction hits nothing. Without this its box tests
+    // compare NaNs, and where min/max return the other operand for a NaN (IEEE maxNum: NVIDIA,
+    // llvmpipe with LLVM 19) every box is entered: one such ray walks the whole BVH.
+    let lim = vec3<f32>(3.4e38);
+    if (!(all(abs(ray.origin) < lim) && all(abs(ray.dir) < lim))) {
+        if (TRAVERSAL_COUNTERS) {
+            tc_nonfinite += 1u;
+        }
+        return no_hit();
+    }
     var best = no_hit();
     if (params.tlas_node_offset == NO_NODE) {
         return best;

@@ -42,7 +42,7 @@ const MIXTURE_STREAM: u32 = 0xfffffff0u;
 // The traversal counters' per-pixel words in `counters` (integrator_counters only; the renderer
 // sizes the buffer): rays, node tests, primitive tests, BLAS entries, deepest stack, overflows.
 const TC_FIRST: u32 = 4u;
-const TC_WORDS: u32 = 6u;
+const TC_WORDS: u32 = 7u;
 
 // The appendix passes (pc.passes != 0; the renderer binds their accumulator at probe_out):
 // PASS_VEC4S per pixel and lighting of the dispatch (slot k = lighting pc.light + k at
@@ -559,6 +559,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         atomicAdd(&counters[b + 3u], tc_blas);
         atomicMax(&counters[b + 4u], tc_depth);
         atomicAdd(&counters[b + 5u], tc_overflow);
+        atomicAdd(&counters[b + 6u], tc_nonfinite);
     }
     atomicAdd(&counters[0], rays);
 }

@@ -73,8 +73,8 @@ pub struct RenderArgs {
     /// traces them separately.
     #[arg(long, default_value = "shared")]
     lightings: String,
-    /// Count the BVH traversal per pixel (node and primitive tests, BLAS entries, stack depth
-    /// and overflows) and write a heat map of node tests per ray here (PNG; overflowing pixels
+    /// Count the BVH traversal per pixel (node and primitive tests, BLAS entries, stack depth,
+    /// overflows and rays with a NaN or infinite origin or direction) and write a heat map of node tests per ray here (PNG; overflowing pixels
     /// green). The totals go into --stats as "traversal". Costs a kernel compile and some speed.
     #[arg(long)]
     counters: Option<PathBuf>,

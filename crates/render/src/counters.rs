@@ -7,7 +7,7 @@ use serde::Serialize;
 
 /// Words per pixel after the renderer's four (shaders/kernels/integrator.wgsl `TC_WORDS`).
 pub(crate) const TC_FIRST: usize = 4;
-pub(crate) const TC_WORDS: usize = 6;
+pub(crate) const TC_WORDS: usize = 7;
 
 /// Per-pixel sums over every ray the pixel's paths cast (camera, bounce, shadow, walk, aux).
 #[derive(Clone, Debug, Default)]
@@ -26,6 +26,9 @@ pub struct TraversalCounts {
     pub max_depth: Vec<u32>,
     /// Pushes onto a full stack: each loses a subtree, so a hit may be missed.
     pub overflows: Vec<u32>,
+    /// Rays with a NaN or infinite origin or direction: traced as misses, and a bug upstream
+    /// (a NaN shading frame, say) wherever they appear.
+    pub nonfinite: Vec<u32>,
 }
 
 /// Totals over the image, per ray.
@@ -37,6 +40,7 @@ pub struct TraversalSummary {
     pub blas_per_ray: f64,
     pub max_depth: u32,
     pub overflows: u64,
+    pub nonfinite: u64,
 }
 
 impl TraversalCounts {
@@ -56,6 +60,7 @@ impl TraversalCounts {
             blas: field(3),
             max_depth: field(4),
             overflows: field(5),
+            nonfinite: field(6),
         }
     }
 
@@ -70,6 +75,7 @@ impl TraversalCounts {
             blas_per_ray: per_ray(&self.blas),
             max_depth: self.max_depth.iter().copied().max().unwrap_or(0),
             overflows: sum(&self.overflows),
+            nonfinite: sum(&self.nonfinite),
         }
     }
 
@@ -124,13 +130,15 @@ mod tests {
 
     #[test]
     fn words_map_to_fields_and_the_summary_is_per_ray() {
-        // Two pixels: 10 rays / 40 nodes / 20 prims / 10 blas / depth 3 / 0 overflows, and
-        // 30 rays / 200 nodes / 40 prims / 30 blas / depth 7 / 2 overflows.
+        // Two pixels: 10 rays / 40 nodes / 20 prims / 10 blas / depth 3 / 0 overflows / 0
+        // non-finite, and 30 rays / 200 nodes / 40 prims / 30 blas / depth 7 / 2 overflows / 5
+        // non-finite.
         let mut words = vec![99u32; TC_FIRST];
-        words.extend([10, 40, 20, 10, 3, 0, 30, 200, 40, 30, 7, 2]);
+        words.extend([10, 40, 20, 10, 3, 0, 0, 30, 200, 40, 30, 7, 2, 5]);
         let c = TraversalCounts::from_words(&words, 2, 1);
         assert_eq!(c.nodes, vec![40, 200]);
         assert_eq!(c.overflows, vec![0, 2]);
+        assert_eq!(c.nonfinite, vec![0, 5]);
         let s = c.summary();
         assert_eq!(s.rays, 40);
         assert_eq!(s.nodes_per_ray, 6.0);
@@ -138,6 +146,7 @@ mod tests {
         assert_eq!(s.blas_per_ray, 1.0);
         assert_eq!(s.max_depth, 7);
         assert_eq!(s.overflows, 2);
+        assert_eq!(s.nonfinite, 5);
         assert_eq!(c.nodes_per_ray(), vec![4.0, 200.0 / 30.0]);
         let heat = c.heat_map(Some(8.0));
         assert_eq!(heat[1], [0, 255, 0], "overflow marked");

@@ -130,6 +130,12 @@ fn head_counts(r: &Renderer, name: &str) -> (TraversalSummary, usize) {
     let out = render(r, &scene, camera, 32, 4, 8);
     let t = out.traversal.expect("counters").summary();
     println!("{name}: {} triangles, {t:?}", out.stats.triangles);
+    // A NaN shading frame (the ICT heads' eyes, meshes without UVs, before 2026-12-05 on
+    // devices that flush denormals) sends NaN rays on.
+    assert_eq!(
+        t.nonfinite, 0,
+        "{name}: rays with a NaN or infinite origin or direction"
+    );
     (t, out.stats.triangles)
 }
 
