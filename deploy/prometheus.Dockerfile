@@ -2,7 +2,7 @@
 # base image (scripts/docker-build.sh builds it as lightfarm-prometheus:local). With a registry,
 # set PROMETHEUS_IMAGE=prom/prometheus:latest in deploy/.env instead; the compose file's
 # arguments suit both.
-ARG BASE=lightfarm-base:bookworm
+ARG BASE=lightfarm-base:trixie
 FROM ${BASE}
 RUN apt-get update -qq \
  && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends prometheus >/dev/null \

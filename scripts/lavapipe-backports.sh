@@ -1,31 +1,45 @@
 #!/usr/bin/env bash
-# Source me: puts Mesa 25's lavapipe (Debian 12 bookworm-backports) in front of the system's
-# Mesa 22 for this shell, without touching the system: the packages are fetched with a private
-# apt configuration and unpacked under $LIGHTFARM_MESA_DIR (default ~/.cache/lightfarm-mesa).
-# Measured here: 3.4-3.5x faster renders than Mesa 22.3.6 with bit-compatible images
-# (BENCHMARKS.md). Anything that fails leaves the system lavapipe in place, with a message.
+# Source me: puts the newest lavapipe Debian packages for this release (Mesa 25 from
+# bookworm-backports on Debian 12, Mesa 26 from trixie-backports on Debian 13) in front of the
+# system's, for this shell, without touching the system: the packages are fetched with a private
+# apt configuration and unpacked under $LIGHTFARM_MESA_DIR/<suite> (default
+# ~/.cache/lightfarm-mesa). Measured on the 2-core box (BENCHMARKS.md): Mesa 25.0.7 renders
+# 3.4-3.5x faster than Debian 12's Mesa 22.3.6, and Mesa 26.1 (LLVM 19) 1.45-1.55x faster than
+# Mesa 25.0.7 (LLVM 15). Anything that fails leaves the system lavapipe in place, with a message.
 # Opt out with LIGHTFARM_LAVAPIPE=system.
 
 lf_mesa_setup() {
-    local dir="${LIGHTFARM_MESA_DIR:-$HOME/.cache/lightfarm-mesa}"
-    local here
+    local base="${LIGHTFARM_MESA_DIR:-$HOME/.cache/lightfarm-mesa}"
+    local here release suite extra
     here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
     [ "${LIGHTFARM_LAVAPIPE:-backports}" = system ] && return 0
-    if ! grep -q '^VERSION_CODENAME=bookworm' /etc/os-release 2>/dev/null || [ "$(uname -m)" != x86_64 ]; then
-        echo "lavapipe: not Debian 12 on x86_64, keeping the system's driver" >&2
+    release="$(sed -n 's/^VERSION_CODENAME=//p' /etc/os-release 2>/dev/null)"
+    case "$release" in
+        # libdrm2 and libdisplay-info2: the backported driver needs newer ones than the
+        # release ships (bookworm) or than a minimal install has (trixie).
+        bookworm) extra="libdrm2/bookworm-backports" ;;
+        trixie) extra="libdisplay-info2" ;;
+        *) release="" ;;
+    esac
+    if [ -z "$release" ] || [ "$(uname -m)" != x86_64 ]; then
+        echo "lavapipe: not Debian 12 or 13 on x86_64, keeping the system's driver" >&2
         return 0
     fi
+    suite="$release-backports"
+    local dir="$base/$suite"
+    # Before one folder per suite, the bookworm driver sat in $base itself.
+    [ -f "$base/lvp_icd.json" ] && rm -rf "$base/lvp_icd.json" "$base/root" "$base/debs" "$base/apt"
     if [ ! -f "$dir/lvp_icd.json" ]; then
         local mirror apt
         mirror="$(bash "$here/debian-mirror.sh")" || return 0
         mkdir -p "$dir/apt/lists/partial" "$dir/apt/cache/archives/partial" "$dir/debs" "$dir/root"
-        printf 'deb %s bookworm main\ndeb %s bookworm-backports main\n' "$mirror" "$mirror" >"$dir/apt/sources.list"
+        printf 'deb %s %s main\ndeb %s %s main\n' "$mirror" "$release" "$mirror" "$suite" >"$dir/apt/sources.list"
         apt=(-o Dir::Etc::SourceList="$dir/apt/sources.list" -o Dir::Etc::SourceParts=/dev/null
              -o Dir::State::Lists="$dir/apt/lists" -o Dir::Cache="$dir/apt/cache" -o Debug::NoLocking=1)
-        echo "lavapipe: fetching Mesa 25 lavapipe from bookworm-backports into $dir ..." >&2
+        echo "lavapipe: fetching Mesa's lavapipe from $suite into $dir ..." >&2
         if ! apt-get "${apt[@]}" update -qq >/dev/null 2>&1 ||
-            ! (cd "$dir/debs" && apt-get "${apt[@]}" download -qq mesa-vulkan-drivers/bookworm-backports \
-                libdrm2/bookworm-backports >/dev/null 2>&1); then
+            ! (cd "$dir/debs" && apt-get "${apt[@]}" download -qq "mesa-vulkan-drivers/$suite" \
+                "$extra" >/dev/null 2>&1); then
             echo "lavapipe: could not fetch the backports driver, keeping the system's" >&2
             return 0
         fi
