@@ -1,7 +1,9 @@
 //! The traversal counters (crates/render/src/counters.rs, `integrator_counters`): exact counts
-//! where they are known, the same image as the production kernel, and the ICT heads — 35× slower
-//! per ray than the other heads on an H100 (BENCHMARKS.md) — costing the traversal about what a
-//! comparable scan costs, with no stack overflow.
+//! where they are known, the same image as the production kernel, and the ICT heads — 35×
+//! slower per ray than the other heads on an H100, 31× on Mesa 26's lavapipe, from NaN rays
+//! (BENCHMARKS.md) — costing the traversal about what a comparable scan costs, with no stack
+//! overflow and no ray with a NaN or infinite origin or direction. Mesa 25 (CI) never made those NaNs; run this on
+//! Mesa 26 with `scripts/lavapipe-trixie.sh test`.
 
 mod common;
 
