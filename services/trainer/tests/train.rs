@@ -43,8 +43,10 @@ fn both_render_nets_overfit_four_samples() {
     let tmp = tempfile::tempdir().unwrap();
     let mut models = Vec::new();
     // The paper's render net is held to the bar; the ablation only has to train (its
-    // row is there to be compared), so it gets half the steps to keep the suite short.
-    for (net, steps) in [(RenderNet::Decomposed, 300u64), (RenderNet::Blackbox, 150)] {
+    // row is there to be compared). It gets the same steps: at 150 its relit MAE swung from
+    // 0.78x to 0.88x the input's between two renders of the dataset that differed only in the
+    // noise of surfaces without UVs (2026-12-05); at 300 it is 0.64x and 0.66x on the same two.
+    for (net, steps) in [(RenderNet::Decomposed, 300u64), (RenderNet::Blackbox, 300)] {
         let out = tmp.path().join(format!("{net:?}"));
         let cfg = config(&out, steps, net);
         let summary = lightfarm_trainer::train(
@@ -95,16 +97,16 @@ fn both_render_nets_overfit_four_samples() {
         rows[0].mse
     );
     // The ablation's bar is looser than the paper's net's, but not "any improvement": it
-    // measured 0.055 vs 0.079 (0.70x) at 150 steps.
+    // measured 0.052 vs 0.080 (0.66x) at 300 steps.
     assert!(
         rows[2].mae < 0.8 * input,
         "blackbox: relit MAE {} vs input {input}",
         rows[2].mae
     );
     // SSIM is the paper's net's bar only: the black-box ablation predicts the relit image
-    // directly and blurs it at this size and step count (measured 0.654 vs the input's 0.668
-    // at 150 steps after the garment push-out changed the renders), which is the paper's
-    // reason for the decomposed net, not a training failure.
+    // directly and can blur it at this size and step count (measured 0.654 vs the input's 0.668
+    // at 150 steps after the garment push-out changed the renders; 0.711 vs 0.662 at 300),
+    // which is the paper's reason for the decomposed net, not a training failure.
     assert!(
         rows[1].ssim > rows[0].ssim,
         "decomposed: SSIM {} vs input {}",
