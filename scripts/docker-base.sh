@@ -14,25 +14,13 @@ if docker image inspect "$IMAGE" >/dev/null 2>&1; then
     echo "$IMAGE exists (docker rmi it to rebuild)"
     exit 0
 fi
-if ! command -v debootstrap >/dev/null; then
-    if [ "$(id -u)" = 0 ]; then
-        apt-get update -qq && apt-get install -y -qq debootstrap >/dev/null
-    else
-        echo "error: debootstrap is missing; run: sudo apt-get install -y debootstrap" >&2
-        exit 1
-    fi
+if [ "$(id -u)" != 0 ]; then
+    echo "error: building the base image needs root (debootstrap, chroot); run it as root" >&2
+    exit 1
 fi
-MIRROR=$(scripts/debian-mirror.sh 2>/dev/null || echo "http://deb.debian.org/debian")
 ROOT=$(mktemp -d /tmp/lightfarm-base.XXXXXX)
 trap 'rm -rf "$ROOT"' EXIT
-echo "debootstrap trixie from $MIRROR into $ROOT ..."
-debootstrap --variant=minbase --include=ca-certificates,libvulkan1,tini trixie "$ROOT" "$MIRROR" >/dev/null
-echo "deb $MIRROR trixie-backports main" >"$ROOT/etc/apt/sources.list.d/backports.list"
-cp /etc/resolv.conf "$ROOT/etc/resolv.conf"
-chroot "$ROOT" apt-get update -qq
-chroot "$ROOT" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
-    -t trixie-backports mesa-vulkan-drivers >/dev/null
-echo "lavapipe in the image: $(chroot "$ROOT" dpkg-query -W -f '${Version}' mesa-vulkan-drivers)"
+bash scripts/trixie-root.sh "$ROOT" tini
 # Keep the image small: no apt lists, caches or docs.
 chroot "$ROOT" apt-get clean
 rm -rf "$ROOT"/var/lib/apt/lists/* "$ROOT"/usr/share/doc/* "$ROOT"/usr/share/man/* "$ROOT"/var/cache/*

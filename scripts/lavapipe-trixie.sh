@@ -17,7 +17,7 @@
 #   LIGHTFARM_BIN=$(scripts/lavapipe-trixie.sh bin) bench/compare.sh 256 256
 #                                                     the renderer benchmark on this driver
 # The root is kept in $LIGHTFARM_TRIXIE_ROOT (default ~/.cache/lightfarm-trixie); the first call
-# builds it (~3 minutes, ~600 MB). Host paths are bind-mounted in a private mount namespace, so
+# builds it (~30 s and ~700 MB here). Host paths are bind-mounted in a private mount namespace, so
 # nothing stays mounted afterwards.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -29,21 +29,8 @@ case "$root" in "" | / | "$HOME" | "$HOME/") die "LIGHTFARM_TRIXIE_ROOT=$root: n
 
 ensure_root() {
     [ -f "$root/.ready" ] && return 0
-    [ "$(id -u)" = 0 ] || die "building the Debian 13 root needs root (debootstrap, chroot); run as root"
-    command -v debootstrap >/dev/null || apt-get install -y -qq debootstrap >/dev/null ||
-        die "debootstrap is missing: apt-get install -y debootstrap"
-    local mirror
-    mirror="$(bash "$here/debian-mirror.sh" 2>/dev/null || echo http://deb.debian.org/debian)"
     rm -rf "$root"
-    echo "lavapipe-trixie: debootstrap trixie from $mirror into $root ..." >&2
-    debootstrap --variant=minbase --include=ca-certificates,libvulkan1 trixie "$root" "$mirror" >/dev/null ||
-        die "debootstrap failed (network? mirror $mirror); $root is incomplete, rerun to retry"
-    echo "deb $mirror trixie-backports main" >"$root/etc/apt/sources.list.d/backports.list"
-    cp /etc/resolv.conf "$root/etc/resolv.conf"
-    chroot "$root" apt-get update -qq
-    chroot "$root" env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends \
-        -t trixie-backports mesa-vulkan-drivers >/dev/null || die "installing Mesa from trixie-backports failed"
-    echo "lavapipe-trixie: Mesa $(chroot "$root" dpkg-query -W -f '${Version}' mesa-vulkan-drivers)" >&2
+    bash "$here/trixie-root.sh" "$root" || die "could not make the Debian 13 root; rerun to retry"
     touch "$root/.ready"
 }
 
