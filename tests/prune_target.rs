@@ -51,73 +51,67 @@ fn superseded_executables_and_incremental_caches_go_and_nothing_else() {
     let cache = dir.path().join("debug/incremental/render-1");
     fs::create_dir_all(&cache).unwrap();
     fs::write(cache.join("q.bin"), vec![0u8; 4 << 20]).unwrap();
-    // The same test built twice (the older in another clone): the older goes.
-    let old_root = Some("/old/clone/crates/render/tests/traversal.rs");
-    artifact(
-        &deps,
-        "traversal-00000000000000aa",
-        3 << 20,
-        true,
-        7200,
-        old_root,
-    );
-    let root = Some("/a/crates/render/tests/traversal.rs");
-    artifact(&deps, "traversal-00000000000000bb", 1 << 20, true, 60, root);
-    // A test of the same name in another crate stays.
-    let other = Some("/a/crates/scene/tests/traversal.rs");
-    artifact(
-        &deps,
-        "traversal-00000000000000cc",
-        1 << 20,
-        true,
-        7200,
-        other,
-    );
-    // A crate's lib and bin unit tests share a name; both stay.
-    let lib = Some("/a/crates/cli/src/lib.rs");
-    artifact(
-        &deps,
-        "lightfarm-00000000000000dd",
-        1 << 10,
-        true,
-        7200,
-        lib,
-    );
-    let bin = Some("/a/crates/cli/src/main.rs");
-    artifact(&deps, "lightfarm-00000000000000ee", 1 << 10, true, 60, bin);
-    // Libraries of one crate built twice (build scripts and target) stay, as do shared objects.
-    artifact(
-        &deps,
-        "libserde-00000000000000aa.rlib",
-        1 << 10,
-        false,
-        7200,
-        None,
-    );
-    artifact(
-        &deps,
-        "libserde-00000000000000bb.rlib",
-        1 << 10,
-        false,
-        60,
-        None,
-    );
-    artifact(
-        &deps,
-        "libserde_derive-00000000000000aa.so",
-        1 << 10,
-        true,
-        7200,
-        None,
-    );
-    artifact(
-        &deps,
-        "libserde_derive-00000000000000bb.so",
-        1 << 10,
-        true,
-        60,
-        None,
-    );
+    // (name, bytes, executable, age in seconds, root source in the dep-info)
+    let artifacts: [(&str, usize, bool, u64, Option<&str>); 9] = [
+        // The same test built twice (the older in another clone): the older goes.
+        (
+            "traversal-00000000000000aa",
+            3 << 20,
+            true,
+            7200,
+            Some("/old/clone/crates/render/tests/traversal.rs"),
+        ),
+        (
+            "traversal-00000000000000bb",
+            1 << 20,
+            true,
+            60,
+            Some("/a/crates/render/tests/traversal.rs"),
+        ),
+        // A test of the same name in another crate stays.
+        (
+            "traversal-00000000000000cc",
+            1 << 20,
+            true,
+            7200,
+            Some("/a/crates/scene/tests/traversal.rs"),
+        ),
+        // A crate's lib and bin unit tests share a name; both stay.
+        (
+            "lightfarm-00000000000000dd",
+            1 << 10,
+            true,
+            7200,
+            Some("/a/crates/cli/src/lib.rs"),
+        ),
+        (
+            "lightfarm-00000000000000ee",
+            1 << 10,
+            true,
+            60,
+            Some("/a/crates/cli/src/main.rs"),
+        ),
+        // Libraries of one crate built twice (build scripts and target) stay, as do shared objects.
+        ("libserde-00000000000000aa.rlib", 1 << 10, false, 7200, None),
+        ("libserde-00000000000000bb.rlib", 1 << 10, false, 60, None),
+        (
+            "libserde_derive-00000000000000aa.so",
+            1 << 10,
+            true,
+            7200,
+            None,
+        ),
+        (
+            "libserde_derive-00000000000000bb.so",
+            1 << 10,
+            true,
+            60,
+            None,
+        ),
+    ];
+    for (name, len, exec, age_s, root) in artifacts {
+        artifact(&deps, name, len, exec, age_s, root);
+    }
 
     let stdout = prune(dir.path());
     // 3 MiB of the old executable and 4 MiB of incremental cache.
