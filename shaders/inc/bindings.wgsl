@@ -11,7 +11,7 @@ struct Params {
     rr_depth: u32,
     num_lights: u32,
     tlas_node_offset: u32, // NO_NODE when the scene is empty
-    scene_flags: u32,      // SCENE_HAS_LENS (some material is MAT_FLAG_CLEAR)
+    scene_flags: u32,      // SCENE_HAS_LENS (some material is MAT_FLAG_CLEAR), SCENE_ONE_INSTANCE
     tile_row_stride: u32,  // crates/render/src/tile_order.rs; 0 or 1 = image order
     _pad1: u32,
     _pad2: u32,
@@ -109,6 +109,7 @@ const ENV_DISC: u32 = 1u;
 // Side of the directional-albedo tables (`tables`, written once by kernels/tables.wgsl).
 const LUT_N: u32 = 32u;
 const SCENE_HAS_LENS: u32 = 1u;
+const SCENE_ONE_INSTANCE: u32 = 2u;
 // The instance's BLAS is over fibre segments (round cones with spherical caps), not triangles.
 const INST_CURVES: u32 = 1u;
 const PI: f32 = 3.14159265358979;

@@ -427,6 +427,13 @@ fn trace_impl(ray: Ray, any_hit: bool, skip_flags: u32) -> Hit {
     var sp = 0u;
     var current = vec2<u32>(0u, 0x80000000u);
     var prims = vec2<u32>(0u, 0u);
+    // One instance: the walk starts at its leaf, as if the TLAS root had been tested. Its BLAS
+    // root tests the ray against tighter boxes anyway, so this saves a node test per ray and
+    // keeps a single traverse_blas call site.
+    if ((params.scene_flags & SCENE_ONE_INSTANCE) != 0u) {
+        current = vec2<u32>(0u, 0u);
+        prims = vec2<u32>(0u, 1u);
+    }
     loop {
         while (prims.y != 0u) {
             let local = firstLeadingBit(prims.y);

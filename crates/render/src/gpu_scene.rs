@@ -16,7 +16,7 @@ use obvhs::BvhBuildParams;
 use crate::gpu_curves::{pack_curve_set, CurveBlas};
 use crate::gpu_types::{
     InstanceGpu, MaterialGpu, INST_CURVES, MAT_FLAG_LENS, MAT_FLAG_THIN, NO_NODE, NO_TEX,
-    SCENE_HAS_LENS, TRI_ATTR_VEC4S,
+    SCENE_HAS_LENS, SCENE_ONE_INSTANCE, TRI_ATTR_VEC4S,
 };
 use crate::scene::{Material, MaterialModel, Scene};
 use crate::RenderError;
@@ -394,17 +394,21 @@ impl PackedScene {
     }
 
     /// SCENE_HAS_LENS when some material is a lens or a thin clear sheet (shadow rays must
-    /// then look through it).
+    /// then look through it); SCENE_ONE_INSTANCE when the TLAS holds a single instance, whose
+    /// box test would only repeat the BLAS root's.
     pub fn scene_flags(&self) -> u32 {
-        if self
+        let lens = self
             .materials
             .iter()
-            .any(|m| m.tex[3] & (MAT_FLAG_LENS | MAT_FLAG_THIN) != 0)
-        {
-            SCENE_HAS_LENS
-        } else {
-            0
+            .any(|m| m.tex[3] & (MAT_FLAG_LENS | MAT_FLAG_THIN) != 0);
+        let mut flags = 0;
+        if lens {
+            flags |= SCENE_HAS_LENS;
         }
+        if self.instances.len() == 1 {
+            flags |= SCENE_ONE_INSTANCE;
+        }
+        flags
     }
 
     /// A scene with no geometry (every ray misses); the probes bind it when they test sampling alone.

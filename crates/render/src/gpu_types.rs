@@ -11,6 +11,8 @@ pub const MAT_FLAG_LENS: u32 = 1;
 pub const MAT_FLAG_THIN: u32 = 2;
 /// Some material is see-through (MAT_FLAG_LENS or MAT_FLAG_THIN): shadow rays look through it.
 pub const SCENE_HAS_LENS: u32 = 1;
+/// The scene has exactly one instance: rays go straight to its BLAS, skipping the TLAS.
+pub const SCENE_ONE_INSTANCE: u32 = 2;
 /// The instance's BLAS is over fibre segments (INST_CURVES in bindings.wgsl).
 pub const INST_CURVES: u32 = 1;
 /// vec4s of per-triangle attributes in `tri_attr` (see shaders/inc/traverse.wgsl).
@@ -29,7 +31,7 @@ pub struct Params {
     pub rr_depth: u32,
     pub num_lights: u32,
     pub tlas_node_offset: u32,
-    /// SCENE_HAS_LENS
+    /// SCENE_HAS_LENS | SCENE_ONE_INSTANCE
     pub scene_flags: u32,
     /// The integrator renders workgroup row r at tile row r × stride mod rows
     /// (`tile_order.rs`); 0 or 1 keeps image order.

@@ -190,6 +190,7 @@ impl Probe {
         let params = Params {
             seed,
             tlas_node_offset: scene.tlas_node_offset,
+            scene_flags: scene.scene_flags(),
             ..Default::default()
         };
         let bound = Bound::upload(&self.ctx, &params, scene, env)?;
