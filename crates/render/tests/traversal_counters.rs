@@ -51,52 +51,92 @@ fn render(
     .expect("render")
 }
 
-#[test]
-fn rays_that_miss_test_the_root_only_and_rays_onto_the_sphere_enter_its_blas() {
-    // One sphere in the middle of the image: a camera ray that misses its box ends after the
-    // TLAS root's test; a camera ray onto the sphere enters its BLAS, and so do the shadow and
-    // bounce rays from it except where the spawn offset puts them just outside the box (where
-    // the sphere touches its box).
+/// Pixels of a 32² render at `spp` of `scene`: (background pixels whose every ray ended after one
+/// node test and no primitive test, object pixels), after `check` of every pixel's counts
+/// (rays, node tests, primitive tests, BLAS entries, covered).
+fn classify(scene: &Scene, spp: u32, check: impl Fn(usize, [u32; 4], bool)) -> (usize, usize) {
     let r = counting();
-    let spp = 4;
-    let out = render(
-        &r,
-        &common::sphere_scene(0.5),
-        common::front_camera(),
-        32,
-        spp,
-        2,
-    );
+    let out = render(&r, scene, common::front_camera(), 32, spp, 2);
     let t = out.traversal.expect("counters");
-    let (mut missed, mut hit) = (0, 0);
+    let (mut root_only, mut covered) = (0, 0);
     for p in 0..32 * 32 {
         assert_eq!(t.overflows[p], 0);
-        if out.mask[p] == 0.0 && t.blas[p] == 0 {
-            assert_eq!(
-                (t.rays[p], t.nodes[p], t.prims[p]),
-                (spp, spp, 0),
-                "background pixel {p}: rays, node tests, primitive tests"
-            );
-            missed += 1;
+        let counts = [t.rays[p], t.nodes[p], t.prims[p], t.blas[p]];
+        check(p, counts, out.mask[p] == 1.0);
+        if out.mask[p] == 0.0 && counts[..3] == [spp, spp, 0] {
+            root_only += 1;
         } else if out.mask[p] == 1.0 {
-            assert!(t.rays[p] > spp, "pixel {p}: shadow and bounce rays");
-            assert!(
-                (spp..=t.rays[p]).contains(&t.blas[p]),
-                "pixel {p}: {} BLAS entries for {} rays",
-                t.blas[p],
-                t.rays[p]
-            );
-            assert!(
-                t.nodes[p] >= 2 * t.rays[p] && t.prims[p] >= spp,
-                "pixel {p}: {} nodes",
-                t.nodes[p]
-            );
-            hit += 1;
+            covered += 1;
         }
     }
+    (root_only, covered)
+}
+
+#[test]
+fn one_instance_rays_start_at_its_blas_root() {
+    // One sphere, one instance: the walk skips the TLAS (SCENE_ONE_INSTANCE), so every ray enters
+    // the sphere's BLAS. A camera ray far from the sphere ends after the BLAS root's test; one
+    // onto it goes deeper, and so do its shadow and bounce rays.
+    let spp = 4;
+    let (root_only, covered) = classify(
+        &common::sphere_scene(0.5),
+        spp,
+        |p, [rays, nodes, prims, blas], on| {
+            assert_eq!(blas, rays, "pixel {p}: every ray enters the one BLAS");
+            if on {
+                assert!(rays > spp, "pixel {p}: shadow and bounce rays");
+                assert!(
+                    nodes >= rays + spp && prims >= spp,
+                    "pixel {p}: {nodes} nodes, {prims} primitives for {rays} rays"
+                );
+            }
+        },
+    );
     assert!(
-        missed > 50 && hit > 50,
-        "{missed} background, {hit} sphere pixels"
+        root_only > 50 && covered > 50,
+        "{root_only} background, {covered} sphere pixels"
+    );
+}
+
+#[test]
+fn rays_that_miss_test_the_tlas_root_only_and_rays_onto_a_sphere_enter_its_blas() {
+    // Two spheres, two instances: a camera ray that misses both boxes ends after the TLAS root's
+    // test; a camera ray onto a sphere enters its BLAS, and so do the shadow and bounce rays
+    // from it except where the spawn offset puts them just outside the box (where the sphere
+    // touches its box).
+    let mut scene = Scene::default();
+    for x in [-0.4, 0.4] {
+        scene.add_mesh_instance(
+            shapes::icosphere(0.3, 4),
+            common::material(0.5, 0.0),
+            Mat4::from_translation(Vec3::new(x, 0.0, 0.0)),
+        );
+    }
+    let spp = 4;
+    let (root_only, covered) = classify(&scene, spp, |p, [rays, nodes, prims, blas], on| {
+        if !on && nodes == spp {
+            assert_eq!(
+                (rays, prims, blas),
+                (spp, 0, 0),
+                "background pixel {p}: rays, primitive tests, BLAS entries"
+            );
+        }
+        if on {
+            assert!(rays > spp, "pixel {p}: shadow and bounce rays");
+            // A ray enters each sphere's BLAS at most once.
+            assert!(
+                (spp..=2 * rays).contains(&blas),
+                "pixel {p}: {blas} BLAS entries for {rays} rays"
+            );
+            assert!(
+                nodes >= 2 * rays && prims >= spp,
+                "pixel {p}: {nodes} nodes"
+            );
+        }
+    });
+    assert!(
+        root_only > 50 && covered > 50,
+        "{root_only} background, {covered} sphere pixels"
     );
 }
 
