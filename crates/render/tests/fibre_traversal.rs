@@ -290,8 +290,10 @@ fn rays_leaving_a_fibre_do_not_hit_it_again() {
     }
     assert!(second.len() > 3000, "only {} first hits", second.len());
     let gpu2 = trace(&p, &packed, &second);
-    // Acne: a ray hitting its own fibre right away. (Further along a bent strand a ray that
-    // left it may meet it again: real geometry, which the CPU reference below checks.)
+    // Acne: a ray hitting its own fibre right away. A hit on its own piece always is; one on the
+    // neighbouring piece within 4 radii is unless the CPU reference (exact, f64) finds that hit
+    // too: where the strand bends, a ray that left it on the inside of the bend meets the next
+    // segment (seen at 1.2-2.3 radii). Further hits are checked against the CPU below.
     let mut acne = Vec::new();
     for (k, (g, seg)) in gpu2.iter().zip(&own).enumerate() {
         let Some(g) = g else { continue };
@@ -299,7 +301,12 @@ fn rays_leaving_a_fibre_do_not_hit_it_again() {
         let r = packed.curve_blas[0].segments[*seg]
             .r0
             .max(packed.curve_blas[0].segments[*seg].r1);
-        if same_or_joint(&packed, gs, *seg) && (gs == *seg || g.t < 4.0 * r) {
+        let (o, d, tmin) = second[k];
+        let real = || {
+            cpu_closest(&packed, o, d, tmin)
+                .is_some_and(|(t, cs)| cs == gs && (f64::from(g.t) - t).abs() <= 1.2e-6 + 1e-6 * t)
+        };
+        if same_or_joint(&packed, gs, *seg) && (gs == *seg || (g.t < 4.0 * r && !real())) {
             acne.push(format!(
                 "ray {k}: from segment {seg} hits {gs} at t {}",
                 g.t
