@@ -46,7 +46,7 @@ pub struct PackedScene {
     pub instance_curves: Vec<u32>,
     /// One per curve set with segments.
     pub curve_blas: Vec<CurveBlas>,
-    /// Fibre segments over all curve sets.
+    /// Fibre segments over all curve sets (strand segments; the BVH holds their pieces).
     pub segment_count: usize,
     pub materials: Vec<MaterialGpu>,
     pub tex_data: Vec<u32>,
@@ -267,7 +267,7 @@ pub fn pack_scene(scene: &Scene) -> Result<PackedScene, RenderError> {
             curve_blas.push(b);
         }
     }
-    let segment_count = curve_blas.iter().map(|b| b.segments.len()).sum();
+    let segment_count = curve_blas.iter().map(|b| b.strand_segments).sum();
 
     // Top level over the instances whose mesh has triangles.
     let mut live: Vec<(u32, u32, Mat4)> = Vec::new(); // (scene instance, blas, transform)

@@ -6,7 +6,7 @@ mod common;
 
 use common::fibres::{hair_material, hanging_strands, Rand};
 use glam::{DVec3, Vec3};
-use lightfarm_render::gpu_curves::{Segment, SEGMENT_VEC4S};
+use lightfarm_render::gpu_curves::{segments_of, Segment, BVH_PIECES, SEGMENT_VEC4S};
 use lightfarm_render::gpu_scene::{pack_scene, PackedScene};
 use lightfarm_render::probe::{GpuHit, Probe};
 use lightfarm_render::scene::Scene;
@@ -117,10 +117,11 @@ fn silhouette_margin(s: &Segment, o: DVec3, d: DVec3) -> f64 {
     ((dist(f) - r) / r).abs()
 }
 
-/// Adjacent segments of one strand share the sphere between them: a hit there may be either.
+/// Adjacent segments of one strand, and the pieces of one segment, share the cut between them:
+/// a hit there may be either.
 fn same_or_joint(packed: &PackedScene, a: usize, b: usize) -> bool {
     let own = &packed.curve_blas[0].segment_strand;
-    a == b || (own[a].0 == own[b].0 && own[a].1.abs_diff(own[b].1) == 1)
+    a == b || (own[a].0 == own[b].0 && own[a].1.abs_diff(own[b].1) <= 1)
 }
 
 fn check(
@@ -323,14 +324,58 @@ fn rays_leaving_a_fibre_do_not_hit_it_again() {
     check(&packed, &second, &gpu2, "rays leaving a fibre");
 }
 
+/// The BVH's pieces are the same surface as the whole segments: the CPU reference finds the same
+/// closest t through either, near and far from the fibres (f64; the cuts are computed in f32).
+#[test]
+fn pieces_form_the_same_fibres_as_their_segments() {
+    let scene = scene();
+    let packed = pack_scene(&scene).expect("pack");
+    let (whole, _) = segments_of(&scene.curves[0]);
+    assert!(
+        packed.curve_blas[0].segments.len() > whole.len(),
+        "the pieces are what this test is about"
+    );
+    let closest = |segs: &[Segment], o: DVec3, d: DVec3| {
+        segs.iter()
+            .filter_map(|s| cpu_segment(s, o, d, 0.0))
+            .min_by(f64::total_cmp)
+    };
+    let mut rng = Rand(0x5eed_f1b2_e000_0001);
+    let (mut hits, mut bad) = (0, Vec::new());
+    for k in 0..1500 {
+        let (_, target) = near_segment(&packed, &mut rng, if k % 2 == 0 { 0.5 } else { 4.0 });
+        let o = target - rng.dir() * 0.1;
+        let (o, d) = (o.as_dvec3(), (target - o).normalize().as_dvec3());
+        let (a, b) = (
+            closest(&packed.curve_blas[0].segments, o, d),
+            closest(&whole, o, d),
+        );
+        match (a, b) {
+            (None, None) => {}
+            (Some(a), Some(b)) if (a - b).abs() <= 1e-9 + 1e-6 * b => hits += 1,
+            other => bad.push((k, other)),
+        }
+    }
+    assert!(hits > 500, "only {hits} rays hit the fibres");
+    assert!(
+        bad.is_empty(),
+        "{} rays differ, first: {:?}",
+        bad.len(),
+        &bad[..bad.len().min(5)]
+    );
+}
+
 #[test]
 fn curves_pack_into_segments_with_their_bvh() {
     let scene = scene();
     let packed = pack_scene(&scene).expect("pack");
     assert_eq!(packed.curve_blas.len(), 1);
     let b = &packed.curve_blas[0];
-    assert_eq!(b.segments.len(), 300 * 23);
-    assert_eq!(packed.segment_count, 300 * 23);
+    assert_eq!(b.segments.len(), 300 * 23 * BVH_PIECES);
+    assert_eq!(
+        (b.strand_segments, packed.segment_count),
+        (300 * 23, 300 * 23)
+    );
     // SEGMENT_VEC4S per segment after the (absent) triangles, each segment exactly once.
     assert_eq!(packed.tri_pos.len(), SEGMENT_VEC4S * b.segments.len());
     let mut seen = vec![false; b.segments.len()];
