@@ -36,13 +36,13 @@ pub struct Segment {
     pub cap1: bool,
 }
 
-/// Pieces per segment in the BVH. A hair segment is 50-300 radii long and mostly diagonal, so
-/// its box is mostly empty and rays near the hair enter many boxes whose fibre they miss. Two
-/// collinear pieces form the same tube (the cut between them is square to the axis, at the
-/// interpolated radius) in boxes of about half the area: 40% fewer fibre tests per ray and
-/// 10-25% faster renders of long hair on lavapipe, for twice the segment memory and BVH build
-/// time (BENCHMARKS.md, "Hair as fibres on lavapipe"). Four pieces cut the tests further but
-/// not the time.
+/// Pieces per segment in the BVH. A hair segment of the dataset's samples is 45-315 radii long
+/// (10th-90th percentile) and mostly diagonal, so its box is mostly empty and rays near the
+/// hair enter many boxes whose fibre they miss. Two collinear pieces form the same tube (the
+/// cut between them is square to the axis, at the interpolated radius) in boxes of about half
+/// the area: 20-40% fewer fibre tests per ray, long-hair samples 9-19% faster on lavapipe,
+/// for twice the segment memory and BVH build time (BENCHMARKS.md, "Two pieces per segment in
+/// the BVH"). Four pieces cut the tests further but not the time.
 pub const BVH_PIECES: usize = 2;
 
 /// A curve set with more segments than this keeps one piece per segment, so that its pieces stay
