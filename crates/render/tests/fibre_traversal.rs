@@ -72,11 +72,10 @@ fn cpu_segment(s: &Segment, o: DVec3, d: DVec3, tmin: f64) -> Option<f64> {
     best
 }
 
-/// Closest CPU hit: (t, segment index in the set's order).
-fn cpu_closest(packed: &PackedScene, o: DVec3, d: DVec3, tmin: f64) -> Option<(f64, usize)> {
-    let b = &packed.curve_blas[0];
+/// Closest CPU hit among `segs` (the packed pieces, or whole segments): (t, index in `segs`).
+fn cpu_closest(segs: &[Segment], o: DVec3, d: DVec3, tmin: f64) -> Option<(f64, usize)> {
     let mut best: Option<(f64, usize)> = None;
-    for (i, s) in b.segments.iter().enumerate() {
+    for (i, s) in segs.iter().enumerate() {
         if let Some(t) = cpu_segment(s, o, d, tmin) {
             if best.is_none_or(|(bt, _)| t < bt) {
                 best = Some((t, i));
@@ -84,6 +83,12 @@ fn cpu_closest(packed: &PackedScene, o: DVec3, d: DVec3, tmin: f64) -> Option<(f
         }
     }
     best
+}
+
+/// A GPU t agrees with the CPU's: f32 positions ~5 cm from the origin are good to ~1e-8 m; the
+/// tolerance is 2% of a radius.
+fn t_matches(gpu_t: f32, t: f64) -> bool {
+    (f64::from(gpu_t) - t).abs() <= 1.2e-6 + 1e-6 * t
 }
 
 /// The segment (set order) of a GPU hit.
@@ -133,13 +138,12 @@ fn check(
     let mut hits = 0;
     let mut bad = Vec::new();
     for (k, ((o, d, tmin), g)) in rays.iter().zip(gpu).enumerate() {
-        let cpu = cpu_closest(packed, *o, *d, *tmin);
+        let cpu = cpu_closest(&packed.curve_blas[0].segments, *o, *d, *tmin);
         match (g, cpu) {
             (None, None) => {}
             (Some(g), Some((t, seg))) => {
                 let gs = gpu_segment(packed, g);
-                // f32 positions ~5 cm from the origin: ~1e-8 m; the tolerance is 2% of a radius.
-                let t_ok = (f64::from(g.t) - t).abs() <= 1.2e-6 + 1e-6 * t;
+                let t_ok = t_matches(g.t, t);
                 // Where the ray grazes a silhouette f32 may hit or miss: a later GPU hit where it
                 // grazes the CPU's fibre, or an earlier one on a fibre it grazes (seen on Mesa 26
                 // at 2.7e-5 of the radius).
@@ -308,8 +312,8 @@ fn rays_leaving_a_fibre_do_not_hit_it_again() {
             .max(packed.curve_blas[0].segments[*seg].r1);
         let (o, d, tmin) = second[k];
         let real = || {
-            cpu_closest(&packed, o, d, tmin)
-                .is_some_and(|(t, cs)| cs == gs && (f64::from(g.t) - t).abs() <= 1.2e-6 + 1e-6 * t)
+            cpu_closest(&packed.curve_blas[0].segments, o, d, tmin)
+                .is_some_and(|(t, cs)| cs == gs && t_matches(g.t, t))
         };
         if same_or_joint(&packed, gs, *seg) && (gs == *seg || (g.t < 4.0 * r && !real())) {
             acne.push(format!(
@@ -339,11 +343,6 @@ fn pieces_form_the_same_fibres_as_their_segments() {
         packed.curve_blas[0].segments.len() > whole.len(),
         "the pieces are what this test is about"
     );
-    let closest = |segs: &[Segment], o: DVec3, d: DVec3| {
-        segs.iter()
-            .filter_map(|s| cpu_segment(s, o, d, 0.0))
-            .min_by(f64::total_cmp)
-    };
     let mut rng = Rand(0x5eed_f1b2_e000_0001);
     let (mut hits, mut bad) = (0, Vec::new());
     for k in 0..1500 {
@@ -351,8 +350,8 @@ fn pieces_form_the_same_fibres_as_their_segments() {
         let o = target - rng.dir() * 0.1;
         let (o, d) = (o.as_dvec3(), (target - o).normalize().as_dvec3());
         let (a, b) = (
-            closest(&packed.curve_blas[0].segments, o, d),
-            closest(&whole, o, d),
+            cpu_closest(&packed.curve_blas[0].segments, o, d, 0.0).map(|h| h.0),
+            cpu_closest(&whole, o, d, 0.0).map(|h| h.0),
         );
         match (a, b) {
             (None, None) => {}
