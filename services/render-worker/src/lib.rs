@@ -13,7 +13,7 @@ mod outbox;
 use std::future::Future;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use lightfarm_proto::v1 as pb;
@@ -124,6 +124,10 @@ pub async fn run(
 /// returns the render statistics as JSON. The EXR has one header attribute (renderer, sample
 /// and the assembled scene's materials), so its bytes are a pure function of the sample and
 /// the device: render times go to the index, not the file, and a re-render is bit-identical.
+/// Besides the render's own statistics, the JSON says where the sample's time went, in
+/// seconds: `assemble_seconds` (the subject: head, hair growth, garment, textures),
+/// `setup_seconds` (environment maps, BVH builds, upload), the render's `seconds` (and
+/// `olat_seconds`), `write_seconds` (the EXR) and `sample_seconds` (all of it).
 pub fn render_to_exr(
     renderer: &Renderer,
     catalog: &lightfarm_scene::Catalog,
@@ -131,8 +135,11 @@ pub fn render_to_exr(
     sample_json: &str,
     path: &std::path::Path,
 ) -> Result<String> {
+    let start = Instant::now();
     let assembled = lightfarm_subject::assemble(sample, catalog)?;
+    let assembled_at = start.elapsed().as_secs_f64();
     let out = lightfarm_subject::render::render_sample(renderer, &assembled, &mut |_| {})?;
+    let rendered_at = start.elapsed().as_secs_f64();
     let meta = serde_json::json!({
         "renderer": RENDERER_VERSION,
         "sample": serde_json::from_str::<serde_json::Value>(sample_json)?,
@@ -146,7 +153,15 @@ pub fn render_to_exr(
         &out,
         &[("lightfarm.sample".to_string(), meta.to_string())],
     )?;
-    Ok(serde_json::to_string(&out.stats)?)
+    let done_at = start.elapsed().as_secs_f64();
+    let mut stats = serde_json::to_value(&out.stats)?;
+    let render_seconds = out.stats.seconds + out.stats.olat_seconds;
+    stats["assemble_seconds"] = serde_json::json!(assembled_at);
+    stats["setup_seconds"] =
+        serde_json::json!((rendered_at - assembled_at - render_seconds).max(0.0));
+    stats["write_seconds"] = serde_json::json!(done_at - rendered_at);
+    stats["sample_seconds"] = serde_json::json!(done_at);
+    Ok(stats.to_string())
 }
 
 /// How often a rendering worker heartbeats, and its shutdown flag (a heartbeat says draining).
