@@ -2,8 +2,9 @@
 # Every GPU figure in BENCHMARKS.md, in one run on an NVIDIA machine:
 #   1. the renderer on the GPU (sphere and head scenes of bench/compare.sh, two sizes), beside
 #      Mitsuba 3's cuda_ad_rgb on the same scenes when `import mitsuba` works; then the
-#      traversal counters of the ICT heads against the other heads, and shared paths (K = 2
-#      and 8 lightings) against separate renders on a dataset sample;
+#      traversal counters of the ICT heads against the other heads, shared paths (K = 2
+#      and 8 lightings) against separate renders on a dataset sample, and what six samples of
+#      examples/dataset.toml cost a worker end to end at its 512², 256 spp (target <= 1 s);
 #   2. training iterations/s of the relighting network, Burn's wgpu backend vs the same network
 #      in PyTorch CUDA (bench/train_torch.py), same run, same shapes, batch 1 and 8 at 256² and
 #      4 at 512², in f32 and in half precision (bench_train --precision f16 / bf16 against
@@ -13,7 +14,7 @@
 #   4. the whole pipeline on the GPU: a dataset rendered, a tiny network trained on it until it
 #      overfits, `lightfarm eval` on the samples it saw.
 # Usage: bench/gpu.sh [OUT]  (default out/gpu-bench)
-# Env: BIN = a folder with prebuilt `lightfarm`, `bench_train`, `bench_scene` and `lighting_cost` (built with
+# Env: BIN = a folder with prebuilt `lightfarm`, `bench_train`, `bench_scene`, `lighting_cost` and `sample_cost` (built with
 #      --features gpu) for machines without cargo; by default they are built here. SPHERE = the
 #      bench sphere (`bench_scene` output) if it exists already.
 #      PYTHON = a python with torch and CUDA (default python3). STEPS = overfit steps (800).
@@ -34,9 +35,10 @@ if [ -z "${BIN:-}" ]; then
     cargo build --release --locked -p lightfarm-trainer --example bench_train --features "${FEATURES:-gpu}" >&2
     cargo build --release --locked -p lightfarm-render --example bench_scene >&2
     cargo build --release --locked -p lightfarm-subject --example lighting_cost >&2
+    cargo build --release --locked -p lightfarm-worker --example sample_cost >&2
     BIN=$OUT/bin
     mkdir -p "$BIN"
-    cp "$CARGO_TARGET_DIR"/release/lightfarm "$CARGO_TARGET_DIR"/release/examples/{bench_train,bench_scene,lighting_cost} "$BIN"/
+    cp "$CARGO_TARGET_DIR"/release/lightfarm "$CARGO_TARGET_DIR"/release/examples/{bench_train,bench_scene,lighting_cost,sample_cost} "$BIN"/
 fi
 lf=$BIN/lightfarm
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
@@ -119,6 +121,11 @@ done
 echo "## shared paths: K lightings on one set of camera paths against K separate renders,"
 echo "## and the virtual light stage (168 OLAT discs) against one lighting"
 "$BIN/lighting_cost" examples/dataset.toml 0 512 64 2 8 olat
+
+echo "## one light-stage sample as a worker renders it (render_to_exr: assembly, maps and BVHs,"
+echo "## two lightings on shared paths with every pass, the EXR), at the spec's 512², 256 spp;"
+echo "## issue 15's target is <= 1 s a sample"
+"$BIN/sample_cost" examples/dataset.toml 0 6 --device gpu
 
 fi
 

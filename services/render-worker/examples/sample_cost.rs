@@ -1,0 +1,145 @@
+//! What one dataset sample costs a render worker: samples FIRST..FIRST+COUNT of a spec, each
+//! through `render_to_exr`, the function the worker runs per leased task (assembly of the
+//! subject, the environment maps, the BVHs, both lightings on shared paths with every pass of
+//! the spec, the EXR written to disk). Issue 15's GPU target is this wall time at the spec's
+//! own 512², 256 spp: at most 1 s a sample.
+//!
+//! ```text
+//! cargo run --release -p lightfarm-worker --example sample_cost -- SPEC FIRST COUNT [SIZE SPP] [--device D]
+//! ```
+//!
+//! SIZE and SPP override the spec's (a square image). `--device` is `auto` (the default), `gpu`,
+//! `cpu`, an index or part of a name, as for `lightfarm render`. One untimed render of sample
+//! FIRST at 16², 1 spp runs first, so the kernel compile and the catalog's loads are not counted
+//! against the first sample. Prints a markdown table for BENCHMARKS.md, one row per sample, then
+//! the median, min and max.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use lightfarm_render::vulkan::DeviceRequest;
+use lightfarm_render::Renderer;
+use lightfarm_scene::expand::{expand, SampleSpec};
+use lightfarm_scene::spec::DatasetSpec;
+use lightfarm_scene::Catalog;
+use lightfarm_worker::render_to_exr;
+
+const USAGE: &str = "usage: sample_cost SPEC FIRST COUNT [SIZE SPP] [--device D]";
+
+struct Args {
+    spec: PathBuf,
+    first: u64,
+    count: u64,
+    size_spp: Option<(u32, u32)>,
+    device: DeviceRequest,
+}
+
+fn parse_args() -> Result<Args> {
+    let mut positional = Vec::new();
+    let mut device = DeviceRequest::Auto;
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        if a == "--device" {
+            let d = it
+                .next()
+                .context("--device needs a value (auto, gpu, cpu, an index or a name)")?;
+            device = d.parse().with_context(|| format!("--device {d}"))?;
+        } else {
+            positional.push(a);
+        }
+    }
+    let num = |i: usize, what: &str| -> Result<u64> {
+        positional[i]
+            .parse()
+            .with_context(|| format!("{what} '{}' is not a whole number ({USAGE})", positional[i]))
+    };
+    let size_spp = match positional.len() {
+        3 => None,
+        5 => {
+            let (size, spp) = (num(3, "SIZE")?, num(4, "SPP")?);
+            if size == 0 || spp == 0 || size > 16384 || spp > 1 << 20 {
+                bail!("SIZE must be 1..=16384 and SPP 1..=1048576, not {size} and {spp}");
+            }
+            Some((size as u32, spp as u32))
+        }
+        _ => bail!("{USAGE}"),
+    };
+    Ok(Args {
+        spec: PathBuf::from(&positional[0]),
+        first: num(1, "FIRST")?,
+        count: num(2, "COUNT")?.max(1),
+        size_spp,
+        device,
+    })
+}
+
+fn sized(mut sample: SampleSpec, size: u32, spp: u32) -> SampleSpec {
+    sample.render.width = size;
+    sample.render.height = size;
+    sample.render.spp = spp;
+    sample
+}
+
+fn main() -> Result<()> {
+    let args = parse_args()?;
+    let catalog = Catalog::builtin()?;
+    let spec = DatasetSpec::load(&args.spec)
+        .with_context(|| format!("spec {}", args.spec.display()))?
+        .validate(&catalog)
+        .with_context(|| format!("spec {}", args.spec.display()))?;
+    let renderer = Renderer::new(&args.device)?;
+    let dir = tempfile::tempdir()?;
+    let exr = dir.path().join("sample.exr");
+
+    let warm = sized(expand(&spec, args.first)?, 16, 1);
+    render_to_exr(
+        &renderer,
+        &catalog,
+        &warm,
+        &serde_json::to_string(&warm)?,
+        &exr,
+    )
+    .context("warm-up render")?;
+
+    println!("device: {}", renderer.device().name);
+    println!(
+        "| sample | size, spp | triangles | fibre segments | assemble s | setup s (maps, BVH, upload) | render s | EXR s | sample s |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let mut walls = Vec::new();
+    for index in args.first..args.first + args.count {
+        let mut sample = expand(&spec, index)?;
+        if let Some((size, spp)) = args.size_spp {
+            sample = sized(sample, size, spp);
+        }
+        let json = serde_json::to_string(&sample)?;
+        let stats = render_to_exr(&renderer, &catalog, &sample, &json, &exr)
+            .with_context(|| format!("sample {index}"))?;
+        let stats: serde_json::Value = serde_json::from_str(&stats)?;
+        let int = |k: &str| stats.get(k).and_then(|v| v.as_u64()).unwrap_or(0);
+        let secs = |k: &str| stats.get(k).and_then(|v| v.as_f64()).unwrap_or(f64::NAN);
+        let render = secs("seconds") + secs("olat_seconds");
+        println!(
+            "| {index} | {}², {} | {} | {} | {:.3} | {:.3} | {render:.3} | {:.3} | {:.3} |",
+            sample.render.width,
+            sample.render.spp,
+            int("triangles"),
+            int("curve_segments"),
+            secs("assemble_seconds"),
+            secs("setup_seconds"),
+            secs("write_seconds"),
+            secs("sample_seconds"),
+        );
+        walls.push(secs("sample_seconds"));
+    }
+    walls.sort_by(f64::total_cmp);
+    let n = walls.len();
+    let median = (walls[(n - 1) / 2] + walls[n / 2]) / 2.0;
+    println!(
+        "\nsample s over {} samples: median {median:.3}, min {:.3}, max {:.3}",
+        n,
+        walls[0],
+        walls[n - 1]
+    );
+    Ok(())
+}
