@@ -12,7 +12,8 @@
 //! `cpu`, an index or part of a name, as for `lightfarm render`. One untimed render of sample
 //! FIRST at 16², 1 spp runs first, so the kernel compile and the catalog's loads are not counted
 //! against the first sample. Prints a markdown table for BENCHMARKS.md, one row per sample, then
-//! the median, min and max.
+//! the median, min and max. The last column is the start of each sample EXR's BLAKE3: a
+//! change meant only to make samples faster must leave it as it was.
 
 use std::path::PathBuf;
 
@@ -103,9 +104,9 @@ fn main() -> Result<()> {
 
     println!("device: {}", renderer.device().name);
     println!(
-        "| sample | size, spp | triangles | fibre segments | assemble s | setup s (maps, BVH, upload) | render s | EXR s | sample s |"
+        "| sample | size, spp | triangles | fibre segments | assemble s | setup s (maps, BVH, upload) | render s | EXR s | sample s | EXR BLAKE3 |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut walls = Vec::new();
     for index in args.first..args.first + args.count {
         let mut sample = expand(&spec, index)?;
@@ -119,8 +120,10 @@ fn main() -> Result<()> {
         let int = |k: &str| stats.get(k).and_then(|v| v.as_u64()).unwrap_or(0);
         let secs = |k: &str| stats.get(k).and_then(|v| v.as_f64()).unwrap_or(f64::NAN);
         let render = secs("seconds") + secs("olat_seconds");
+        // The file's hash, so that a change meant only to be faster can show the same bytes.
+        let hash = blake3::hash(&std::fs::read(&exr)?).to_hex();
         println!(
-            "| {index} | {}², {} | {} | {} | {:.3} | {:.3} | {render:.3} | {:.3} | {:.3} |",
+            "| {index} | {}², {} | {} | {} | {:.3} | {:.3} | {render:.3} | {:.3} | {:.3} | {} |",
             sample.render.width,
             sample.render.spp,
             int("triangles"),
@@ -129,6 +132,7 @@ fn main() -> Result<()> {
             secs("setup_seconds"),
             secs("write_seconds"),
             secs("sample_seconds"),
+            &hash[..16],
         );
         walls.push(secs("sample_seconds"));
     }

@@ -205,3 +205,67 @@ impl PointGrid {
         d.length_squared()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hair::rng::Rng;
+
+    /// The nearest point by brute force, ties to the lower index.
+    fn brute(points: &[Vec3], ids: &[u32], p: Vec3, max_dist: f32) -> Option<(u32, f32)> {
+        let mut best: Option<(u32, f32)> = None;
+        for &i in ids {
+            let d2 = points[i as usize].distance_squared(p);
+            if d2 > max_dist * max_dist {
+                continue;
+            }
+            if best.is_none_or(|(bi, bd)| d2 < bd || (d2 == bd && i < bi)) {
+                best = Some((i, d2));
+            }
+        }
+        best
+    }
+
+    #[test]
+    fn nearest_is_the_brute_force_answer_for_any_cell_size() {
+        let mut rng = Rng::new(1, 2, 3);
+        // A head-sized shell of points, some duplicated (exact ties).
+        let mut points: Vec<Vec3> = (0..4000)
+            .map(|_| {
+                let z = rng.range(-1.0, 1.0);
+                let phi = rng.range(0.0, std::f32::consts::TAU);
+                let s = (1.0 - z * z).sqrt();
+                Vec3::new(s * phi.cos(), z, s * phi.sin()) * 0.1
+            })
+            .collect();
+        points.extend_from_slice(&points[..200].to_vec());
+        let ids: Vec<u32> = (0..points.len() as u32).filter(|i| i % 7 != 3).collect();
+        let queries: Vec<Vec3> = (0..20_000)
+            .map(|k| {
+                let base = points[k % points.len()];
+                let off = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+                // Near the shell, a little off it, and far outside the grid.
+                base + off * [0.002, 0.02, 0.3][k % 3]
+            })
+            .collect();
+        let mut mismatches = Vec::new();
+        for cell in [0.004, 0.008, 0.012, 0.016, 0.024] {
+            let grid = PointGrid::new(&points, &ids, cell, 0.03);
+            for (k, &q) in queries.iter().enumerate() {
+                for max_dist in [0.03, f32::INFINITY] {
+                    let got = grid.nearest(q, max_dist);
+                    let want = brute(&points, &ids, q, max_dist);
+                    if got != want {
+                        mismatches.push((cell, k, max_dist, got, want));
+                    }
+                }
+            }
+        }
+        assert!(
+            mismatches.is_empty(),
+            "{} mismatches, first {:?}",
+            mismatches.len(),
+            &mismatches[..mismatches.len().min(5)]
+        );
+    }
+}
