@@ -5,7 +5,9 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 use lightfarm_scene::expand::{HairSample, HAIR_RANGES};
-use lightfarm_subject::hair::{grow_eyebrows, grow_hair, hair_albedo, Strands, HAIR_STYLES};
+use lightfarm_subject::hair::{
+    grow_eyebrows, grow_eyelashes, grow_hair, hair_albedo, Strands, HAIR_STYLES,
+};
 use lightfarm_subject::landmarks::closest_on_triangle;
 use lightfarm_subject::{HeadSurface, Landmarks};
 
@@ -236,22 +238,66 @@ fn growth_is_deterministic_and_follows_the_seed() {
         let a = grow_hair(&h.surface, &h.lm, &s, 5).unwrap();
         let b = grow_hair(&h.surface, &h.lm, &s, 5).unwrap();
         let c = grow_hair(&h.surface, &h.lm, &s, 6).unwrap();
-        let bits = |s: &Strands| {
-            let p: Vec<u32> = s
-                .points
-                .iter()
-                .flat_map(|p| p.to_array())
-                .map(f32::to_bits)
-                .collect();
-            let w: Vec<u32> = s.widths.iter().map(|w| w.to_bits()).collect();
-            (p, w, s.offsets.clone())
-        };
         assert_eq!(bits(&a), bits(&b), "{style}: same seed, different strands");
         assert_ne!(bits(&a).0, bits(&c).0, "{style}: the seed changes nothing");
     }
     let brows = |seed| grow_eyebrows(&h.surface, &h.lm, seed);
     assert_eq!(brows(1), brows(1));
     assert_ne!(brows(1).points, brows(2).points);
+}
+
+/// Strands, brows and lashes are grown on rayon's threads; how many there are must not show in
+/// a single bit (workers with different core counts must render the same samples).
+#[test]
+fn growth_does_not_depend_on_the_thread_count() {
+    let id = HeadId::Ict7;
+    let loaded = load_head(id);
+    let h = head(id);
+    let pool = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool")
+    };
+    let grow_all = |threads: usize| {
+        pool(threads).install(|| {
+            let hair: Vec<Strands> = HAIR_STYLES
+                .iter()
+                .map(|style| grow_hair(&h.surface, &h.lm, &typical(style, 0.08), 11).unwrap())
+                .collect();
+            let brows = grow_eyebrows(&h.surface, &h.lm, 11);
+            let lashes = grow_eyelashes(&loaded.surface, &loaded.eyelids, 11);
+            (hair, brows, lashes)
+        })
+    };
+    let (one, three) = (grow_all(1), grow_all(3));
+    assert!(one.1.strand_count() > 0 && one.2.strand_count() > 0);
+    for (style, (a, b)) in HAIR_STYLES.iter().zip(one.0.iter().zip(&three.0)) {
+        assert!(a.strand_count() > 0, "{style}: no strands");
+        assert_eq!(bits(a), bits(b), "{style}: 1 thread and 3 threads differ");
+    }
+    assert_eq!(
+        bits(&one.1),
+        bits(&three.1),
+        "eyebrows: 1 thread and 3 threads differ"
+    );
+    assert_eq!(
+        bits(&one.2),
+        bits(&three.2),
+        "eyelashes: 1 thread and 3 threads differ"
+    );
+}
+
+/// Every coordinate and width as bits, and the offsets: equality here is bit-identity.
+fn bits(s: &Strands) -> (Vec<u32>, Vec<u32>, Vec<u32>) {
+    let p: Vec<u32> = s
+        .points
+        .iter()
+        .flat_map(|p| p.to_array())
+        .map(f32::to_bits)
+        .collect();
+    let w: Vec<u32> = s.widths.iter().map(|w| w.to_bits()).collect();
+    (p, w, s.offsets.clone())
 }
 
 #[test]

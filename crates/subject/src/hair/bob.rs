@@ -1,6 +1,7 @@
 //! The bob: grown long, then cut at one height.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::growth::{Grower, Steer, StrandPlan};
 use super::polyline::{arc_to_height, resample};
@@ -19,14 +20,14 @@ impl Grower<'_> {
         // so the full set only grows a little past it.
         let stride = (plans.len() / 500).max(1);
         let subset: Vec<Vec<Vec3>> = plans
-            .iter()
+            .par_iter()
             .step_by(stride)
             .map(|p| self.grow_path(p, steps, GROW_STEP, |_, _| Steer::Comb))
             .collect();
         let rough_cut = cut_height(&subset, &vec![0.0; subset.len()], mean_length, MIN_LEN);
         let stop_below = rough_cut - 0.03;
         let long: Vec<Vec<Vec3>> = plans
-            .iter()
+            .par_iter()
             .map(|p| {
                 self.grow_path(p, steps, GROW_STEP, |q, _| {
                     if q.y < stop_below {
@@ -44,7 +45,7 @@ impl Grower<'_> {
             })
             .collect();
         let cut = cut_height(&long, &jitter, mean_length, MIN_LEN);
-        long.iter()
+        long.par_iter()
             .zip(&jitter)
             .zip(plans)
             .map(|((pts, j), plan)| {

@@ -1,6 +1,7 @@
 //! Clumping: guide strands and the pull of every other strand towards its guide.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::grid::PointGrid;
 use super::polyline::{cumulative_arc, point_at_fraction, smoothstep};
@@ -18,6 +19,7 @@ pub(super) fn assign_guides(roots: &[Root]) -> Vec<usize> {
     let ids: Vec<u32> = (0..n_guides as u32).collect();
     let grid = PointGrid::new(&positions, &ids, 0.01, 0.0);
     (0..roots.len())
+        .into_par_iter()
         .map(|i| {
             if i < n_guides {
                 i
@@ -37,7 +39,7 @@ pub(super) fn clump(
     clumping: f32,
 ) -> Vec<(Vec<Vec3>, f32)> {
     lines
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(i, (pts, start))| {
             let g = guides.get(i).copied().unwrap_or(i);

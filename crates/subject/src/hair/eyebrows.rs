@@ -1,6 +1,7 @@
 //! Eyebrows: short fine strands lying on the brow ridges.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::landmarks::{HeadSurface, Landmarks};
 
@@ -125,13 +126,20 @@ fn grow_eyebrows_checked(
         );
         let centre = eye + Vec3::new(side * 0.004, 0.019, 0.0) * scale;
         let local = LocalSkin::new(surface, &skin, centre, 0.045 * scale);
-        for (i, root) in roots.iter().enumerate() {
-            let mut rng = Rng::new(seed, STREAM_BROW_STRAND, (b * BROW_STRANDS + i) as u64);
-            if let Some(pts) = grow_brow_hair(&local, &brow, root, &mut rng) {
+        // Each hair has its own stream: grown on every core, collected in order.
+        let hairs: Vec<(Vec<Vec3>, Vec<f32>)> = roots
+            .par_iter()
+            .enumerate()
+            .filter_map(|(i, root)| {
+                let mut rng = Rng::new(seed, STREAM_BROW_STRAND, (b * BROW_STRANDS + i) as u64);
+                let pts = grow_brow_hair(&local, &brow, root, &mut rng)?;
                 let w = BROW_ROOT_WIDTH * rng.range(0.85, 1.15);
                 let widths = taper(&pts, w);
-                out.push(&pts, &widths);
-            }
+                Some((pts, widths))
+            })
+            .collect();
+        for (pts, widths) in &hairs {
+            out.push(pts, widths);
         }
     }
     Ok(out)

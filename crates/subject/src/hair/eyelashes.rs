@@ -1,6 +1,7 @@
 //! Eyelashes: curved fibres along the lid margins of [`crate::eyelids`].
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::eyelids::EyeLids;
 use crate::landmarks::HeadSurface;
@@ -93,13 +94,19 @@ pub fn grow_eyelashes(surface: &HeadSurface, lids: &[EyeLids], seed: u64) -> Str
                 opening,
                 lateral,
             };
-            for i in 0..lid.count {
-                let index = ((e * 2 + l) * 1000 + i) as u64;
-                let mut rng = Rng::new(seed, STREAM_LASH, index);
-                if let Some(pts) = grow_lash(&place, lid, i, &mut rng) {
+            // Each lash has its own stream: grown on every core, collected in order.
+            let lashes: Vec<(Vec<Vec3>, Vec<f32>)> = (0..lid.count)
+                .into_par_iter()
+                .filter_map(|i| {
+                    let index = ((e * 2 + l) * 1000 + i) as u64;
+                    let mut rng = Rng::new(seed, STREAM_LASH, index);
+                    let pts = grow_lash(&place, lid, i, &mut rng)?;
                     let widths = taper(&pts, lid.root_width * rng.range(0.85, 1.15));
-                    out.push(&pts, &widths);
-                }
+                    Some((pts, widths))
+                })
+                .collect();
+            for (pts, widths) in &lashes {
+                out.push(pts, widths);
             }
         }
     }

@@ -243,7 +243,11 @@ mod tests {
         let queries: Vec<Vec3> = (0..20_000)
             .map(|k| {
                 let base = points[k % points.len()];
-                let off = Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+                let off = Vec3::new(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                );
                 // Near the shell, a little off it, and far outside the grid.
                 base + off * [0.002, 0.02, 0.3][k % 3]
             })

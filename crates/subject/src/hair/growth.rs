@@ -3,6 +3,7 @@
 
 use glam::{Vec2, Vec3};
 use lightfarm_scene::expand::HairSample;
+use rayon::prelude::*;
 
 use crate::landmarks::{HeadSurface, Landmarks};
 
@@ -139,43 +140,52 @@ impl Grower<'_> {
         }
 
         // Centrelines, and where each strand's curl starts.
+        // Each strand is a pure function of its plan and the read-only skin, so growing them on
+        // every core and collecting in index order gives the same strands for any thread count.
         let mut lines: Vec<(Vec<Vec3>, f32)> = match (self.style.kind, &tie) {
-            (Kind::Buzz, _) => plans.iter().map(|p| (self.grow_buzz(p), 0.0)).collect(),
+            (Kind::Buzz, _) => plans.par_iter().map(|p| (self.grow_buzz(p), 0.0)).collect(),
             (Kind::Ponytail, Some(tail)) => plans
-                .iter()
+                .par_iter()
                 .enumerate()
                 .map(|(i, p)| self.grow_ponytail(p, &plans[guides[i]], tail))
                 .collect(),
             (Kind::Bob, _) => self.grow_bob(&plans, length / stretch),
-            _ => plans.iter().map(|p| (self.grow_flow(p), 0.0)).collect(),
+            _ => plans.par_iter().map(|p| (self.grow_flow(p), 0.0)).collect(),
         };
         if matches!(self.style.kind, Kind::Flow | Kind::Bob) && self.clumping > 0.0 {
             lines = clump(&lines, &guides, self.clumping);
         }
 
+        let settled: Vec<(Vec<Vec3>, Vec<f32>)> = lines
+            .par_iter()
+            .enumerate()
+            .filter_map(|(i, (line, curl_start))| {
+                let plan = &plans[i];
+                let guide = &plans[guides[i]];
+                let mut pts = if plan.amplitude > 0.0 && line.len() >= 2 {
+                    // Clumped strands curl in step with their guide, as real curls do.
+                    let phase = guide.phase + (plan.phase - guide.phase) * (1.0 - self.clumping);
+                    add_curl(
+                        line,
+                        *curl_start,
+                        plan.amplitude,
+                        plan.period,
+                        phase,
+                        any_perpendicular(guide.root.normal),
+                    )
+                } else {
+                    line.clone()
+                };
+                self.settle(&mut pts);
+                (pts.len() >= 2).then(|| {
+                    let widths = taper(&pts, plan.width);
+                    (pts, widths)
+                })
+            })
+            .collect();
         let mut out = Strands::new();
-        for (i, (line, curl_start)) in lines.iter().enumerate() {
-            let plan = &plans[i];
-            let guide = &plans[guides[i]];
-            let mut pts = if plan.amplitude > 0.0 && line.len() >= 2 {
-                // Clumped strands curl in step with their guide, as real curls do.
-                let phase = guide.phase + (plan.phase - guide.phase) * (1.0 - self.clumping);
-                add_curl(
-                    line,
-                    *curl_start,
-                    plan.amplitude,
-                    plan.period,
-                    phase,
-                    any_perpendicular(guide.root.normal),
-                )
-            } else {
-                line.clone()
-            };
-            self.settle(&mut pts);
-            if pts.len() >= 2 {
-                let widths = taper(&pts, plan.width);
-                out.push(&pts, &widths);
-            }
+        for (pts, widths) in &settled {
+            out.push(pts, widths);
         }
         out
     }

@@ -61,7 +61,10 @@
 //! hair gets at least six segments per coil. Per-strand width varies ±15 %.
 //!
 //! **Determinism.** All randomness comes from SplitMix64 streams keyed by (seed, purpose,
-//! index), every loop runs in a fixed order on one thread, and the few transcendental
+//! index), each strand, brow hair and lash is a pure function of its own stream and the
+//! read-only skin (grown on every core with rayon and collected in index order, so the thread
+//! count never shows; the one reduction, the bob's mean length, runs in a fixed order on one
+//! thread), and the few transcendental
 //! functions (exp, ln, sin/cos, atan2) come from the pure-Rust `libm` crate rather than the
 //! platform's C library, so the output is bit-identical on every platform.
 //!
