@@ -326,6 +326,9 @@ pub(super) struct LocalSkin {
     triangles: Vec<[Vec3; 3]>,
     /// Outward unit normal of each triangle.
     normals: Vec<Vec3>,
+    /// Each triangle's bounding box (min, max): a lower bound on its distance that lets
+    /// [`LocalSkin::closest`] skip most triangles exactly.
+    bounds: Vec<(Vec3, Vec3)>,
 }
 
 impl LocalSkin {
@@ -348,11 +351,58 @@ impl LocalSkin {
             triangles.push(tri);
             normals.push(n);
         }
-        LocalSkin { triangles, normals }
+        // 1 µm of slack: a closest point computed in f32 may round a few nm outside its
+        // triangle's exact box, and the bound must never exceed its distance.
+        let slack = Vec3::splat(1e-6);
+        let bounds = triangles
+            .iter()
+            .map(|t| {
+                let (lo, hi) = (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+                (lo - slack, hi + slack)
+            })
+            .collect();
+        LocalSkin {
+            triangles,
+            normals,
+            bounds,
+        }
     }
 
-    /// Closest point on these triangles and the outward normal of its triangle.
+    /// Closest point on these triangles and the outward normal of its triangle; of equally
+    /// close triangles, the first.
     pub(super) fn closest(&self, p: Vec3) -> Option<(Vec3, Vec3)> {
+        if !p.is_finite() {
+            return self.closest_brute(p);
+        }
+        // The triangle whose box is nearest gives a first bound; then every triangle whose box
+        // is no farther than the best so far is measured, in order. A skipped triangle is
+        // strictly farther than the answer, so the answer is the brute force's, bit for bit.
+        let box_d2 =
+            |(lo, hi): &(Vec3, Vec3)| (*lo - p).max(p - *hi).max(Vec3::ZERO).length_squared();
+        let first = self
+            .bounds
+            .iter()
+            .map(box_d2)
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1))?
+            .0;
+        let c = closest_on_triangle(p, self.triangles[first]);
+        let mut best = (c.distance_squared(p), first, c);
+        for (i, b) in self.bounds.iter().enumerate() {
+            if box_d2(b) > best.0 || i == first {
+                continue;
+            }
+            let c = closest_on_triangle(p, self.triangles[i]);
+            let d2 = c.distance_squared(p);
+            if d2 < best.0 || (d2 == best.0 && i < best.1) {
+                best = (d2, i, c);
+            }
+        }
+        Some((best.2, self.normals[best.1]))
+    }
+
+    /// [`LocalSkin::closest`] by measuring every triangle.
+    fn closest_brute(&self, p: Vec3) -> Option<(Vec3, Vec3)> {
         let mut best: Option<(f32, Vec3, Vec3)> = None;
         for (tri, n) in self.triangles.iter().zip(&self.normals) {
             let c = closest_on_triangle(p, *tri);
@@ -364,22 +414,133 @@ impl LocalSkin {
         best.map(|(_, c, n)| (c, n))
     }
 
-    /// Whether the segment a→b crosses one of these triangles (Möller–Trumbore).
+    /// Whether the segment a→b crosses one of these triangles.
     pub(super) fn crossed_by(&self, a: Vec3, b: Vec3) -> bool {
-        let d = b - a;
-        self.triangles.iter().any(|&[p0, p1, p2]| {
-            let (e1, e2) = (p1 - p0, p2 - p0);
-            let h = d.cross(e2);
-            let det = e1.dot(h);
-            if det.abs() < 1e-14 {
-                return false;
+        let (lo, hi) = (a.min(b), a.max(b));
+        // A triangle whose box misses the segment's box cannot cross it.
+        let near = |(tlo, thi): &(Vec3, Vec3)| tlo.cmple(hi).all() && thi.cmpge(lo).all();
+        self.triangles
+            .iter()
+            .zip(&self.bounds)
+            .any(|(tri, bounds)| near(bounds) && segment_crosses(*tri, a, b))
+    }
+}
+
+/// Whether the segment a→b crosses the triangle (Möller–Trumbore).
+fn segment_crosses([p0, p1, p2]: [Vec3; 3], a: Vec3, b: Vec3) -> bool {
+    let d = b - a;
+    let (e1, e2) = (p1 - p0, p2 - p0);
+    let h = d.cross(e2);
+    let det = e1.dot(h);
+    if det.abs() < 1e-14 {
+        return false;
+    }
+    let s = a - p0;
+    let u = s.dot(h) / det;
+    let q = s.cross(e1);
+    let v = d.dot(q) / det;
+    let t = e2.dot(q) / det;
+    u >= 0.0 && v >= 0.0 && u + v <= 1.0 && (0.0..=1.0).contains(&t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A bumpy sphere of radius 10 cm, each triangle listed twice (exact ties).
+    fn bumpy_sphere() -> HeadSurface {
+        let (rings, sectors) = (40u32, 64u32);
+        let mut positions = Vec::new();
+        for i in 0..=rings {
+            let theta = std::f32::consts::PI * i as f32 / rings as f32;
+            for j in 0..sectors {
+                let phi = std::f32::consts::TAU * j as f32 / sectors as f32;
+                let r = 0.1 + 0.002 * (5.0 * phi).sin() * (3.0 * theta).cos();
+                positions.push(
+                    Vec3::new(
+                        theta.sin() * phi.cos(),
+                        theta.cos(),
+                        theta.sin() * phi.sin(),
+                    ) * r,
+                );
             }
-            let s = a - p0;
-            let u = s.dot(h) / det;
-            let q = s.cross(e1);
-            let v = d.dot(q) / det;
-            let t = e2.dot(q) / det;
-            u >= 0.0 && v >= 0.0 && u + v <= 1.0 && (0.0..=1.0).contains(&t)
-        })
+        }
+        let normals = positions.iter().map(|p| p.normalize()).collect();
+        let mut triangles = Vec::new();
+        for i in 0..rings {
+            for j in 0..sectors {
+                let v = |a: u32, b: u32| a * sectors + b % sectors;
+                let quad = [v(i, j), v(i + 1, j), v(i + 1, j + 1), v(i, j + 1)];
+                for t in [[quad[0], quad[2], quad[1]], [quad[0], quad[3], quad[2]]] {
+                    triangles.push(t);
+                    triangles.push(t);
+                }
+            }
+        }
+        HeadSurface {
+            positions,
+            normals,
+            triangles,
+        }
+    }
+
+    #[test]
+    fn closest_is_the_brute_force_answer() {
+        let surface = bumpy_sphere();
+        let skin = Skin::new(&surface).unwrap();
+        let centre = Vec3::new(0.0, 0.05, 0.08);
+        let local = LocalSkin::new(&surface, &skin, centre, 0.05);
+        assert!(local.triangles.len() > 500, "{}", local.triangles.len());
+        let mut rng = Rng::new(7, 0, 0);
+        let mut checked = 0;
+        for k in 0..20_000 {
+            let dir = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            // On the surface, just off it, inside it and well away from it.
+            let p = centre + dir * [0.001, 0.01, 0.03, 0.2][k % 4];
+            let p = [p, p.normalize() * 0.1, p * 0.9, p][k % 4];
+            assert_eq!(local.closest(p), local.closest_brute(p), "query {k} at {p}");
+            checked += 1;
+        }
+        // Vertices exactly: many triangles tie at distance zero.
+        for &p in surface
+            .positions
+            .iter()
+            .filter(|p| p.distance(centre) < 0.04)
+        {
+            assert_eq!(local.closest(p), local.closest_brute(p), "vertex {p}");
+            checked += 1;
+        }
+        assert!(checked > 20_000);
+        // Segments from off the surface through it, along it and beside it.
+        let mut crossings = 0;
+        for k in 0..20_000 {
+            let dir = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            let a = (centre + dir * 0.03).normalize() * rng.range(0.095, 0.105);
+            let b = a + Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            ) * [0.002, 0.01][k % 2];
+            let brute = local.triangles.iter().any(|t| segment_crosses(*t, a, b));
+            assert_eq!(local.crossed_by(a, b), brute, "segment {k}: {a} to {b}");
+            crossings += usize::from(brute);
+        }
+        assert!(
+            (2000..18_000).contains(&crossings),
+            "{crossings} of 20000 segments cross"
+        );
+        let nan = Vec3::new(f32::NAN, 0.0, 0.0);
+        assert_eq!(
+            format!("{:?}", local.closest(nan)),
+            format!("{:?}", local.closest_brute(nan))
+        );
     }
 }
