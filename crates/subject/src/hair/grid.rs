@@ -238,7 +238,7 @@ mod tests {
                 Vec3::new(s * phi.cos(), z, s * phi.sin()) * 0.1
             })
             .collect();
-        points.extend_from_slice(&points[..200].to_vec());
+        points.extend_from_within(..200);
         let ids: Vec<u32> = (0..points.len() as u32).filter(|i| i % 7 != 3).collect();
         let queries: Vec<Vec3> = (0..20_000)
             .map(|k| {
