@@ -1,7 +1,7 @@
 //! Rendering an assembled sample: the one path the preview, the demo and farm workers share.
 
 use lightfarm_light::{EnvTransform, Hdri, OlatBasis, OLAT_DISC_DEG};
-use lightfarm_render::gpu_scene::pack_scene;
+use lightfarm_render::gpu_scene::{pack_scene, PackedScene};
 use lightfarm_render::renderer::Progress;
 use lightfarm_render::{DiscLight, EnvLight, Lighting, RenderOutput, RenderSettings, Renderer};
 
@@ -58,6 +58,22 @@ pub fn olat_basis(lights: u32) -> Result<OlatBasis, SubjectError> {
     })
 }
 
+/// What a sample's render needs besides the device, built on the CPU: its environment maps and
+/// its scene packed for the kernels (the BVHs). A worker builds the next sample's while the
+/// device renders the current one.
+pub struct RenderInputs {
+    pub lights: Vec<EnvLight>,
+    pub packed: PackedScene,
+}
+
+/// Loads the environment maps of `assembled` and packs its scene (BVH builds).
+pub fn render_inputs(assembled: &Assembled) -> Result<RenderInputs, SubjectError> {
+    Ok(RenderInputs {
+        lights: load_lights(assembled)?,
+        packed: pack_scene(&assembled.scene)?,
+    })
+}
+
 /// Renders both lightings and the passes of `assembled` on `renderer`, then, when the sample
 /// asks for them, its OLAT images (`RenderOutput::olat`): every light of the basis on one set
 /// of camera paths, without the appendix passes (they belong to the two lightings).
@@ -66,11 +82,20 @@ pub fn render_sample(
     assembled: &Assembled,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<RenderOutput, SubjectError> {
-    let lights = load_lights(assembled)?;
-    let packed = pack_scene(&assembled.scene)?;
+    render_prepared(renderer, assembled, &render_inputs(assembled)?, progress)
+}
+
+/// [`render_sample`] with inputs built beforehand by [`render_inputs`].
+pub fn render_prepared(
+    renderer: &Renderer,
+    assembled: &Assembled,
+    inputs: &RenderInputs,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<RenderOutput, SubjectError> {
+    let (lights, packed) = (&inputs.lights, &inputs.packed);
     let settings = settings(assembled);
     if assembled.olat == 0 {
-        return Ok(renderer.render(&packed, &lights, &settings, progress)?);
+        return Ok(renderer.render(packed, lights, &settings, progress)?);
     }
     let basis = olat_basis(assembled.olat)?;
     let discs = DiscLight::olat(&basis);
@@ -81,7 +106,7 @@ pub fn render_sample(
     let spp = settings.spp as u64;
     let total = spp * (1 + k);
     let scaled = |p: Progress, weight: u64| p.done * spp * weight / p.total.max(1);
-    let mut out = renderer.render(&packed, &lights, &settings, &mut |p| {
+    let mut out = renderer.render(packed, lights, &settings, &mut |p| {
         progress(Progress {
             done: scaled(p, 1),
             total,
@@ -91,7 +116,7 @@ pub fn render_sample(
         passes: Vec::new(),
         ..settings
     };
-    let olat = renderer.render_lightings(&packed, &olat_lights, &olat_settings, &mut |p| {
+    let olat = renderer.render_lightings(packed, &olat_lights, &olat_settings, &mut |p| {
         progress(Progress {
             done: spp + scaled(p, k),
             total,
