@@ -505,11 +505,13 @@ fn sigterm_drains_a_worker() {
     let api = Api::new(port);
     let job = api.submit();
     let mut w = worker(dir.path(), port, "wd", "wd");
-    let before = done(
-        &api.wait_for(&job, "a first commit", Duration::from_secs(300), |j| {
-            done(j) >= 1
-        }),
-    );
+    // One worker, two leases: it prepares the next sample while it renders the current one.
+    let before = done(&api.wait_for(
+        &job,
+        "a first commit, then two leases held by the one worker",
+        Duration::from_secs(300),
+        |j| done(j) >= 1 && j.counts.as_ref().is_some_and(|c| c.leased == 2),
+    ));
     let pid = w.0.id().to_string();
     let status = Command::new("kill")
         .args(["-TERM", &pid])
@@ -525,13 +527,14 @@ fn sigterm_drains_a_worker() {
         std::thread::sleep(Duration::from_millis(100));
     };
     assert!(exit.success(), "drained worker exits cleanly: {exit:?}");
-    // The sample it was rendering was finished and uploaded, not left to expire.
+    // The sample it was rendering and the one it had prepared were finished and uploaded, not
+    // left to expire.
     let job_now = api.job(&job).expect("job");
     let counts = job_now.counts.expect("counts");
     assert_eq!(counts.leased, 0, "no lease left behind: {counts:?}");
     assert!(
-        counts.done > before,
-        "the in-flight sample was committed: {counts:?}"
+        counts.done >= before + 2,
+        "both samples it held were committed (done {before} while it held two): {counts:?}"
     );
     let log = std::fs::read_to_string(dir.path().join("wd.log")).unwrap_or_default();
     assert!(log.contains("shutdown requested"), "{log}");
