@@ -13,9 +13,13 @@
 //! FIRST at 16², 1 spp runs first, so the kernel compile and the catalog's loads are not counted
 //! against the first sample. Prints a markdown table for BENCHMARKS.md, one row per sample, then
 //! the median, min and max. The last column is the start of each sample EXR's BLAKE3: a
-//! change meant only to make samples faster must leave it as it was.
+//! change meant only to make samples faster must leave it as it was. Then the same samples
+//! again as a worker's loop runs them, the next one prepared (assembly, maps, BVHs) on another
+//! thread while the device renders the current one, and the samples/s of both ways (the
+//! overlapped EXRs must be the same bytes).
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use lightfarm_render::vulkan::DeviceRequest;
@@ -23,7 +27,7 @@ use lightfarm_render::Renderer;
 use lightfarm_scene::expand::{expand, SampleSpec};
 use lightfarm_scene::spec::DatasetSpec;
 use lightfarm_scene::Catalog;
-use lightfarm_worker::render_to_exr;
+use lightfarm_worker::{prepare, render_to_exr, Prepared};
 
 const USAGE: &str = "usage: sample_cost SPEC FIRST COUNT [SIZE SPP] [--device D]";
 
@@ -108,11 +112,17 @@ fn main() -> Result<()> {
     );
     println!("|---|---|---|---|---|---|---|---|---|---|");
     let mut walls = Vec::new();
+    let mut hashes = Vec::new();
+    let sample_of = |index: u64| -> Result<SampleSpec> {
+        let sample = expand(&spec, index)?;
+        Ok(match args.size_spp {
+            Some((size, spp)) => sized(sample, size, spp),
+            None => sample,
+        })
+    };
+    let one_by_one = Instant::now();
     for index in args.first..args.first + args.count {
-        let mut sample = expand(&spec, index)?;
-        if let Some((size, spp)) = args.size_spp {
-            sample = sized(sample, size, spp);
-        }
+        let sample = sample_of(index)?;
         let json = serde_json::to_string(&sample)?;
         let stats = render_to_exr(&renderer, &catalog, &sample, &json, &exr)
             .with_context(|| format!("sample {index}"))?;
@@ -135,7 +145,9 @@ fn main() -> Result<()> {
             &hash[..16],
         );
         walls.push(secs("sample_seconds"));
+        hashes.push(hash);
     }
+    let one_by_one = one_by_one.elapsed().as_secs_f64();
     walls.sort_by(f64::total_cmp);
     let n = walls.len();
     let median = (walls[(n - 1) / 2] + walls[n / 2]) / 2.0;
@@ -145,5 +157,44 @@ fn main() -> Result<()> {
         walls[0],
         walls[n - 1]
     );
+
+    // The same samples as the worker's loop runs them: the next one prepared (assembly, maps,
+    // BVHs) on another thread while this one renders, one sample ahead at most.
+    let overlapped = Instant::now();
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Result<(SampleSpec, Prepared)>>(0);
+    let same = std::thread::scope(|scope| -> Result<bool> {
+        scope.spawn(|| {
+            for index in args.first..args.first + args.count {
+                let prepared =
+                    sample_of(index).and_then(|s| Ok((s.clone(), prepare(&catalog, &s)?)));
+                if tx.send(prepared).is_err() {
+                    return;
+                }
+            }
+        });
+        let mut same = true;
+        for hash in &hashes {
+            let (sample, prepared) = rx.recv().context("the preparing thread stopped")??;
+            prepared.render_to_exr(&renderer, &serde_json::to_string(&sample)?, &exr)?;
+            same &= blake3::hash(&std::fs::read(&exr)?).to_hex() == *hash;
+        }
+        Ok(same)
+    })?;
+    let overlapped = overlapped.elapsed().as_secs_f64();
+    let count = args.count as f64;
+    println!();
+    println!(
+        "{} samples one after another: {one_by_one:.3} s ({:.3} samples/s); the next prepared \
+         during each render, as a worker runs them: {overlapped:.3} s ({:.3} samples/s), {:.2}x; \
+         EXRs {}",
+        args.count,
+        count / one_by_one,
+        count / overlapped,
+        one_by_one / overlapped,
+        if same { "identical" } else { "DIFFER" }
+    );
+    if !same {
+        bail!("the overlapped samples' EXRs differ from the ones rendered one by one");
+    }
     Ok(())
 }
