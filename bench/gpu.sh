@@ -124,7 +124,8 @@ echo "## and the virtual light stage (168 OLAT discs) against one lighting"
 
 echo "## one light-stage sample as a worker renders it (render_to_exr: assembly, maps and BVHs,"
 echo "## two lightings on shared paths with every pass, the EXR), at the spec's 512², 256 spp;"
-echo "## issue 15's target is <= 1 s a sample"
+echo "## issue 15's target is <= 1 s a sample; then the same six overlapped as a worker runs them"
+echo "## (the next prepared on the CPU during each render): samples/s both ways"
 "$BIN/sample_cost" examples/dataset.toml 0 6 --device gpu
 
 fi

@@ -217,7 +217,10 @@ pub fn split_pieces(
     (pieces, piece_owner)
 }
 
-fn build_params() -> BvhBuildParams {
+/// The curve BLAS build parameters: obvhs' medium build (PLOC and reinsertion), no pre-split
+/// (pieces are already short), at most three pieces a leaf. Public so that the worker's
+/// `hair_bvh_cost` example times the same build stage by stage.
+pub fn build_params() -> BvhBuildParams {
     let mut p = BvhBuildParams::medium_build();
     p.pre_split = false;
     p.max_prims_per_leaf = 3;
