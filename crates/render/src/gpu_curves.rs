@@ -217,6 +217,17 @@ pub fn split_pieces(
     (pieces, piece_owner)
 }
 
+/// A curve set's segments as the pieces its BLAS is built over: [`BVH_PIECES`] a segment, or one
+/// for a set of more than [`MAX_SPLIT_SEGMENTS`] segments.
+pub fn bvh_pieces(segments: &[Segment], owner: &[(u32, u32)]) -> (Vec<Segment>, Vec<(u32, u32)>) {
+    let k = if segments.len() > MAX_SPLIT_SEGMENTS {
+        1
+    } else {
+        BVH_PIECES
+    };
+    split_pieces(segments, owner, k)
+}
+
 /// The curve BLAS build parameters: obvhs' medium build (PLOC and reinsertion), no pre-split
 /// (pieces are already short), at most three pieces a leaf. Public so that the worker's
 /// `hair_bvh_cost` example times the same build stage by stage.
@@ -241,12 +252,7 @@ pub(crate) fn pack_curve_set(
     if whole.is_empty() {
         return Ok(None);
     }
-    let k = if whole.len() > MAX_SPLIT_SEGMENTS {
-        1
-    } else {
-        BVH_PIECES
-    };
-    let (segments, segment_strand) = split_pieces(&whole, &owner, k);
+    let (segments, segment_strand) = bvh_pieces(&whole, &owner);
     let boxes: Vec<Aabb> = segments.iter().map(Segment::aabb).collect();
     let start = Instant::now();
     let bvh = build_cwbvh(&boxes, build_params(), &mut Duration::default());

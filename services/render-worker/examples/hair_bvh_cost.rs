@@ -10,16 +10,16 @@
 //! ```
 
 use std::path::PathBuf;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
-use lightfarm_render::gpu_curves::MAX_SPLIT_SEGMENTS;
-use lightfarm_render::gpu_curves::{build_params, segments_of, split_pieces, Segment, BVH_PIECES};
+use lightfarm_render::gpu_curves::{build_params, bvh_pieces, segments_of, Segment, SEGMENT_VEC4S};
 use lightfarm_scene::expand::expand;
 use lightfarm_scene::spec::DatasetSpec;
 use lightfarm_scene::Catalog;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
+use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh;
 use obvhs::ploc::PlocBuilder;
 
@@ -45,22 +45,17 @@ fn main() -> Result<()> {
     println!("rayon threads: {}", rayon_threads());
     println!("| sample | curves | pieces | segments + pieces s | boxes s | PLOC s | reinsertion s | to CWBVH s | records s | all s | nodes BLAKE3 |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    let p = build_params();
     for index in first..first + count {
         let assembled = lightfarm_subject::assemble(&expand(&spec, index)?, &catalog)
             .with_context(|| format!("sample {index}"))?;
         for c in &assembled.scene.curves {
-            let p = build_params();
             let t0 = Instant::now();
             let (whole, owner) = segments_of(c);
             if whole.is_empty() {
                 continue;
             }
-            let k = if whole.len() > MAX_SPLIT_SEGMENTS {
-                1
-            } else {
-                BVH_PIECES
-            };
-            let (segments, _) = split_pieces(&whole, &owner, k);
+            let (segments, _) = bvh_pieces(&whole, &owner);
             let t1 = Instant::now();
             let boxes: Vec<Aabb> = segments.iter().map(Segment::aabb).collect();
             let t2 = Instant::now();
@@ -76,11 +71,23 @@ fn main() -> Result<()> {
             let t4 = Instant::now();
             let bvh = bvh2_to_cwbvh(&bvh2, p.max_prims_per_leaf.clamp(1, 3), true, false);
             let t5 = Instant::now();
-            let mut records = Vec::with_capacity(segments.len() * 3);
+            let mut records = Vec::with_capacity(segments.len() * SEGMENT_VEC4S);
             for &prim in &bvh.primitive_indices {
                 records.extend(segments[prim as usize].gpu_words());
             }
             let t6 = Instant::now();
+            std::hint::black_box(&records);
+            // The stages must be the build the worker runs, or their times say nothing of it.
+            let whole_build = build_cwbvh(&boxes, p, &mut Duration::default());
+            if whole_build.nodes != bvh.nodes
+                || whole_build.primitive_indices != bvh.primitive_indices
+            {
+                bail!(
+                    "sample {index}, curves '{}': the staged build differs from obvhs' \
+                     build_cwbvh with the same parameters; update this example's stages",
+                    c.name
+                );
+            }
             let s = |a: Instant, b: Instant| (b - a).as_secs_f64();
             let hash = blake3::hash(bytemuck::cast_slice(&bvh.nodes)).to_hex();
             println!(
