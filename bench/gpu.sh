@@ -14,9 +14,10 @@
 #   4. the whole pipeline on the GPU: a dataset rendered, a tiny network trained on it until it
 #      overfits, `lightfarm eval` on the samples it saw.
 # Usage: bench/gpu.sh [OUT]  (default out/gpu-bench)
-# Env: BIN = a folder with prebuilt `lightfarm`, `bench_train`, `bench_scene`, `lighting_cost` and `sample_cost` (built with
-#      --features gpu) for machines without cargo; by default they are built here. SPHERE = the
-#      bench sphere (`bench_scene` output) if it exists already.
+# Env: BIN = a folder with prebuilt `lightfarm`, `bench_train`, `bench_scene`, `lighting_cost`,
+#      `sample_cost` and `ray_query_cost` (built with --features gpu) for machines without cargo;
+#      by default they are built here. SPHERE = the bench sphere (`bench_scene` output) if it
+#      exists already.
 #      PYTHON = a python with torch and CUDA (default python3). STEPS = overfit steps (800).
 #      PAPER_STEPS = steps of the paper preset (6). ONLY = render, train, paper or pipeline
 #      runs that section alone. FEATURES = gpu (default: Burn's wgpu backend) or gpu-vulkan
@@ -36,9 +37,10 @@ if [ -z "${BIN:-}" ]; then
     cargo build --release --locked -p lightfarm-render --example bench_scene >&2
     cargo build --release --locked -p lightfarm-subject --example lighting_cost >&2
     cargo build --release --locked -p lightfarm-worker --example sample_cost >&2
+    cargo build --release --locked -p lightfarm-render --example ray_query_cost >&2
     BIN=$OUT/bin
     mkdir -p "$BIN"
-    cp "$CARGO_TARGET_DIR"/release/lightfarm "$CARGO_TARGET_DIR"/release/examples/{bench_train,bench_scene,lighting_cost,sample_cost} "$BIN"/
+    cp "$CARGO_TARGET_DIR"/release/lightfarm "$CARGO_TARGET_DIR"/release/examples/{bench_train,bench_scene,lighting_cost,sample_cost,ray_query_cost} "$BIN"/
 fi
 lf=$BIN/lightfarm
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
@@ -127,6 +129,13 @@ echo "## two lightings on shared paths with every pass, the EXR), at the spec's 
 echo "## issue 15's target is <= 1 s a sample; then the same six overlapped as a worker runs them"
 echo "## (the next prepared on the CPU during each render): samples/s both ways"
 "$BIN/sample_cost" examples/dataset.toml 0 6 --device gpu
+
+echo "## ray queries: the driver's own BVH (VK_KHR_ray_query) against the renderer's software"
+echo "## CWBVH, the same camera and diffuse-bounce rays, closest hits (issue 15's optional path;"
+echo "## on lavapipe the driver's is 0.27-0.98x ours). Fails where the GPU offers no ray queries."
+for scene in assets/heads/LeePerrySmith_textured.glb "$sphere"; do
+    "$BIN/ray_query_cost" "$scene" 2000 5 || echo "(ray_query_cost on $scene failed: the message above says why)"
+done
 
 fi
 

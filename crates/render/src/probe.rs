@@ -15,8 +15,9 @@ use crate::RenderError;
 mod fibre;
 pub use fibre::ProbeFibre;
 
-/// The largest batch one probe call accepts (one dispatch of 64-wide groups).
-pub const MAX_PROBE: usize = 1 << 22;
+/// The largest batch one probe call accepts: one dispatch of 64-wide groups, of which Vulkan
+/// guarantees 65,535 per dimension (lavapipe allows no more).
+pub const MAX_PROBE: usize = 64 * 65_535;
 
 /// Surface parameters as the shaders' `Surface` struct sees them (α, not roughness). The
 /// fields after `ior` are the layered model's (used when `model` is not 0, the glTF mapping).
