@@ -234,3 +234,47 @@ fn check_against_cpu(scene: &Scene, packed: &PackedScene, min_hits: usize) {
         &mismatches[..mismatches.len().min(5)]
     );
 }
+
+/// The largest batch `Probe` takes is one dispatch of Vulkan's guaranteed 65,535 groups of 64:
+/// it traces (every ray onto a quad, so every hit is checked), and one ray more is refused with
+/// the limit in the message. The batch was 2²² once, one group over, and failed at dispatch.
+#[test]
+fn largest_probe_batch_traces_in_one_dispatch() {
+    use lightfarm_render::probe::MAX_PROBE;
+    let mut scene = Scene::default();
+    scene.add_mesh_instance(
+        shapes::quad(1.0, 1.0),
+        common::material(0.5, 0.5),
+        Mat4::IDENTITY,
+    );
+    let packed = pack_scene(&scene).expect("pack");
+    let probe = Probe::new(&common::ctx()).expect("probe");
+    let mut rng = Rand(7);
+    let rays: Vec<_> = (0..MAX_PROBE)
+        .map(|_| {
+            let (x, y) = (rng.next() - 0.5, rng.next() - 0.5);
+            ([x * 0.9, y * 0.9, 1.0], [0.0, 0.0, -1.0], 0.0, f32::MAX)
+        })
+        .collect();
+    let hits = probe
+        .trace(&packed, &rays)
+        .expect("the largest batch traces");
+    assert_eq!(hits.len(), MAX_PROBE);
+    let missed = hits
+        .iter()
+        .filter(|h| !h.is_some_and(|h| (h.t - 1.0).abs() < 1e-5))
+        .count();
+    assert_eq!(
+        missed, 0,
+        "rays onto the quad that missed it or hit at t != 1"
+    );
+    let mut one_more = rays;
+    one_more.push(one_more[0]);
+    let err = probe
+        .trace(&packed, &one_more)
+        .expect_err("a batch over the limit is refused");
+    assert!(
+        err.to_string().contains(&MAX_PROBE.to_string()),
+        "the refusal names the limit: {err}"
+    );
+}
