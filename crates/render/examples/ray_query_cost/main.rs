@@ -4,7 +4,7 @@
 //! of issue 15 (BENCHMARKS.md, "Ray queries on lavapipe").
 //!
 //! Usage: cargo run --release -p lightfarm-render --example ray_query_cost -- [SCENE.glb] [SIZE] [ROUNDS]
-//! (defaults: the LeePerrySmith head, 2000, 5). SIZE² camera rays from +Z, then one diffuse
+//! (defaults: the LeePerrySmith head, 2000, 5; SIZE 64..=2047). SIZE² camera rays from +Z, then one diffuse
 //! bounce ray from each camera hit; both paths trace every set, taking turns, ROUNDS times.
 //! Needs a device with VK_KHR_ray_query: lavapipe from Mesa 24.1 (`source
 //! scripts/lavapipe-backports.sh`), or an RTX-class GPU.
@@ -209,9 +209,10 @@ fn run() -> Res<()> {
     let path = args.get(1).map_or(default, |s| s.as_str());
     let size: u32 = args.get(2).map_or(Ok(2000), |s| s.parse())?;
     let rounds: usize = args.get(3).map_or(Ok(5), |s| s.parse())?;
-    if (size as usize).pow(2) > MAX_PROBE || size == 0 || rounds == 0 {
+    // Each timing subtracts a 64-ray call, so a set must be far larger than that.
+    if (size as usize).pow(2) > MAX_PROBE || size < 64 || rounds == 0 {
         return Err(format!(
-            "SIZE must be 1..={} and ROUNDS ≥ 1",
+            "SIZE must be 64..={} and ROUNDS ≥ 1",
             (MAX_PROBE as f64).sqrt() as u32
         )
         .into());
@@ -224,7 +225,8 @@ fn run() -> Res<()> {
     let triangles: usize = scene
         .instances
         .iter()
-        .map(|i| scene.meshes[i.mesh as usize].indices.len() / 3)
+        .filter_map(|i| scene.meshes.get(i.mesh as usize))
+        .map(|m| m.indices.len() / 3)
         .sum();
 
     let t0 = Instant::now();
@@ -271,8 +273,15 @@ fn run() -> Res<()> {
     println!("| rays | count | software M rays/s | ray-query M rays/s | ray query / software | hit or miss differs | other triangle | t differs |");
     println!("|---|---|---|---|---|---|---|---|");
     for (name, rays) in [("camera", &camera), ("diffuse bounce", &bounce)] {
+        if rays.len() < 1024 {
+            println!(
+                "| {name} | {} | too few rays to time: frame the scene larger | | | | | |",
+                rays.len()
+            );
+            continue;
+        }
         let (mut sw, mut hq) = (Vec::new(), Vec::new());
-        let mut check = None;
+        let mut check = (0, 0, 0);
         // An untimed round first: a driver may compile the pipeline at its first dispatch.
         probe.trace(&packed, tiny)?;
         run.trace(tiny)?;
@@ -290,10 +299,10 @@ fn run() -> Res<()> {
             let r = run.trace(rays)?;
             hq.push(rays.len() as f64 / (t.elapsed().as_secs_f64() - rq_fixed).max(1e-9) / 1e6);
             if round == 0 {
-                check = Some(agreement(&software_hits(&packed, &s), &r));
+                check = agreement(&software_hits(&packed, &s), &r);
             }
         }
-        let (status, tri, t) = check.unwrap_or_default();
+        let (status, tri, t) = check;
         let line = |v: &mut Vec<f64>| {
             let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
             let hi = v.iter().copied().fold(0.0, f64::max);
