@@ -13,7 +13,7 @@ struct Params {
     tlas_node_offset: u32, // NO_NODE when the scene is empty
     scene_flags: u32,      // SCENE_HAS_LENS (some material is MAT_FLAG_CLEAR), SCENE_ONE_INSTANCE
     tile_row_stride: u32,  // crates/render/src/tile_order.rs; 0 or 1 = image order
-    _pad1: u32,
+    loop_check: u32,       // LOOP_CHECK_TURNS (kernels/integrator.wgsl, report_cut_loops)
     _pad2: u32,
     cam_pos: vec4<f32>,
     cam_right: vec4<f32>, // scaled by tan(fov/2) * aspect

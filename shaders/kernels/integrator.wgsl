@@ -483,6 +483,27 @@ fn aux_passes(first: Ray, first_hit: Hit, p: u32, sample: u32, rays: ptr<functio
     }
 }
 
+// Mesa 22's llvmpipe (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS) allows each SIMD group of
+// invocations 65,535 loop turns in all, summed over every loop of the shader, and then ends each
+// loop at its next turn: the samples and traversals still to come are lost without a trace, and
+// the pixel is divided by samples it never took (a glass shell rendered at 64 spp kept ~52).
+// Mesa 25 and 26 set no such limit. A loop that must turn params.loop_check (8) times turns
+// fewer once the budget is spent (measured: 2 of 1,000; its bound is read from memory, so no
+// compiler can unroll it away); counters[2] then counts the invocations that saw it, and the
+// renderer refuses the render.
+fn report_cut_loops() {
+    var turns = 0u;
+    loop {
+        turns += 1u;
+        if (turns >= params.loop_check) {
+            break;
+        }
+    }
+    if (turns < params.loop_check) {
+        atomicAdd(&counters[2], 1u);
+    }
+}
+
 fn accumulate(p: u32, sum: vec3<f32>, passes: Passes) {
     accum_lit[p] += vec4<f32>(sum, 0.0);
     if (pc.passes != 0u) {
@@ -519,6 +540,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         p = pix.y * params.width + pix.x;
         if (pc.mode == STAGE_GATHER) {
             job_gather(p);
+            report_cut_loops();
             return;
         }
     }
@@ -562,4 +584,5 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         atomicAdd(&counters[b + 6u], tc_nonfinite);
     }
     atomicAdd(&counters[0], rays);
+    report_cut_loops();
 }

@@ -36,7 +36,9 @@ pub struct Params {
     /// The integrator renders workgroup row r at tile row r × stride mod rows
     /// (`tile_order.rs`); 0 or 1 keeps image order.
     pub tile_row_stride: u32,
-    pub _pad: [u32; 2],
+    /// The turns of the integrator's cut-loop check: LOOP_CHECK_TURNS (renderer.rs).
+    pub loop_check: u32,
+    pub _pad: u32,
     pub cam_pos: [f32; 4],
     pub cam_right: [f32; 4],
     pub cam_up: [f32; 4],

@@ -45,6 +45,19 @@ pub enum RenderError {
     InvalidScene(String),
     #[error("invalid render settings: {0}")]
     InvalidSettings(String),
+    /// The driver ended the integrator's loops before they were done (kernels/integrator.wgsl,
+    /// `report_cut_loops`): the render would have lost samples and traversals.
+    #[error(
+        "{device} ({driver}) ended the integrator's loops early in {invocations} invocations, \
+         so samples were lost and the image would be wrong: Mesa 22's llvmpipe stops every loop \
+         of a shader invocation after 65,535 turns in all. Render with Mesa 25 or newer \
+         (`source scripts/lavapipe-backports.sh`, with LIGHTFARM_LAVAPIPE unset) or on a GPU"
+    )]
+    LoopsCut {
+        device: String,
+        driver: String,
+        invocations: u32,
+    },
     #[error("cannot write {path}: {reason}")]
     Output {
         path: std::path::PathBuf,

@@ -29,6 +29,11 @@ const STAGE_PATHS: u32 = 1;
 const STAGE_WALKS: u32 = 2;
 const STAGE_GATHER: u32 = 3;
 
+/// How many times the integrator's `report_cut_loops` loop has to turn: a driver that has
+/// ended the invocation's loops still turns it twice (Mesa 22 peels one turn), so the check
+/// asks for more. It is read from `params` so that no compiler can unroll the loop.
+const LOOP_CHECK_TURNS: u32 = 8;
+
 /// The variable that replaces the built-in integrator with a SPIR-V file, for kernel work:
 /// `bench/kernel_ab.sh` compiles two `shaders/` trees (`examples/compile_kernel.rs`) and times
 /// the same binary with each.
@@ -225,7 +230,8 @@ impl Renderer {
             } else {
                 1
             },
-            _pad: [0; 2],
+            loop_check: LOOP_CHECK_TURNS,
+            _pad: 0,
             cam_pos,
             cam_right,
             cam_up,
@@ -364,6 +370,14 @@ impl Renderer {
                 // With counters on this reads the per-pixel words too; they accumulate across
                 // dispatches, only the first four are reset.
                 let c: Vec<u32> = counters.read()?;
+                if c[2] > 0 {
+                    let info = self.ctx.info();
+                    return Err(RenderError::LoopsCut {
+                        device: info.name.clone(),
+                        driver: info.driver.clone(),
+                        invocations: c[2],
+                    });
+                }
                 rays += c[0] as u64;
                 counters.write(&[0u32; 4])?;
                 s += count;

@@ -1,0 +1,116 @@
+//! A render whose invocations turn their loops more than 65,535 times in all: every sample is
+//! taken, or the renderer refuses the render naming the driver and the fix. Mesa 22's llvmpipe
+//! ends every loop of an invocation after that many turns (kernels/integrator.wgsl,
+//! `report_cut_loops`), and before the integrator checked for it this scene's pixels kept ~52
+//! of their 64 samples there while the image passed for converged.
+
+mod common;
+
+use glam::Mat4;
+use lightfarm_render::gpu_scene::pack_scene;
+use lightfarm_render::scene::{shapes, Scene};
+use lightfarm_render::{RenderError, RenderSettings};
+
+/// A white sphere in a glass shell: each camera ray crosses two lens surfaces before the
+/// passes find the sphere, and the paths shuttle between sphere and shell.
+fn sphere_in_a_glass_shell() -> Scene {
+    let mut scene = Scene::default();
+    scene.add_mesh_instance(
+        shapes::icosphere(0.3, 5),
+        common::material(1.0, 0.0),
+        Mat4::IDENTITY,
+    );
+    scene.add_mesh_instance(
+        shapes::icosphere(0.5, 5),
+        common::clear_glass("glass"),
+        Mat4::IDENTITY,
+    );
+    let mut inner = shapes::icosphere(0.49, 5);
+    for t in inner.indices.chunks_exact_mut(3) {
+        t.swap(1, 2);
+    }
+    for n in &mut inner.normals {
+        *n = n.map(|c| -c);
+    }
+    scene.add_mesh_instance(inner, common::clear_glass("glass"), Mat4::IDENTITY);
+    scene
+}
+
+/// The major version in a driver string such as "llvmpipe (Mesa 22.3.6 (LLVM 15.0.6))".
+fn mesa_major(driver: &str) -> Option<u32> {
+    let rest = &driver[driver.find("Mesa ")? + 5..];
+    rest.split('.').next()?.parse().ok()
+}
+
+#[test]
+fn every_sample_is_taken_or_the_render_is_refused() {
+    const SIZE: u32 = 16;
+    // 256 pixels are one dispatch of 64 samples per invocation, ~1,000 traversals each: well
+    // over 65,535 loop turns per SIMD group.
+    let settings = RenderSettings {
+        width: SIZE,
+        height: SIZE,
+        spp: 64,
+        seed: 6,
+        max_depth: 16,
+        rr_depth: 16,
+        camera: common::front_camera(),
+        passes: Vec::new(),
+    };
+    let packed = pack_scene(&sphere_in_a_glass_shell()).expect("pack");
+    let result = common::renderer().render(
+        &packed,
+        &[common::constant_light(1.0)],
+        &settings,
+        &mut |_| {},
+    );
+    let info = common::ctx().info().clone();
+    match result {
+        Ok(out) => {
+            // The sphere's silhouette spans ~6 pixels across the middle; the central 4 x 4
+            // see it through the shell with every sample.
+            let mut short = Vec::new();
+            for y in 6..10usize {
+                for x in 6..10usize {
+                    let i = y * SIZE as usize + x;
+                    if out.mask[i] != 1.0 {
+                        short.push((x, y, out.mask[i]));
+                    }
+                }
+            }
+            assert!(
+                short.is_empty(),
+                "{} ({}): pixels that lost samples (x, y, coverage): {short:?}",
+                info.name,
+                info.driver
+            );
+        }
+        Err(e @ RenderError::LoopsCut { .. }) => {
+            let message = e.to_string();
+            println!("refused: {message}");
+            assert!(
+                mesa_major(&info.driver).is_some_and(|m| m < 25),
+                "{} ({}) is not a driver known to cut loops: {message}",
+                info.name,
+                info.driver
+            );
+            assert!(
+                message.contains(&info.driver)
+                    && message.contains("65,535")
+                    && message.contains("scripts/lavapipe-backports.sh"),
+                "{message}"
+            );
+        }
+        Err(e) => panic!("render failed: {e}"),
+    }
+}
+
+#[test]
+fn mesa_versions_are_read_from_driver_strings() {
+    assert_eq!(mesa_major("llvmpipe (Mesa 22.3.6 (LLVM 15.0.6))"), Some(22));
+    assert_eq!(
+        mesa_major("llvmpipe (Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6))"),
+        Some(25)
+    );
+    assert_eq!(mesa_major("NVIDIA (570.195.03)"), None);
+}
