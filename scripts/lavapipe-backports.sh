@@ -69,13 +69,12 @@ lf_mesa_setup() {
 lf_mesa_backports=0
 lf_mesa_setup
 # Debian 12's own Mesa 22.3.6 ends every loop of a shader invocation once its loops have turned
-# 65,535 times in all (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS), so deep renders lose samples; the
-# renderer detects it and refuses them, and seven render tests fail that way (glass and thin
-# sheets seen from outside, the skin furnace and slab, the pass sums, shared paths, OLAT
-# relighting). Say so wherever a Debian 12 shell is left with it.
+# 65,535 times in all (gallivm's LP_MAX_TGSI_LOOP_ITERATIONS); the renderer finds that at start
+# and renders one sample per dispatch there, slower still. Say so wherever a Debian 12 shell is
+# left with it.
 if [ "$lf_mesa_backports" = 0 ] && grep -q '^VERSION_CODENAME=bookworm' /etc/os-release 2>/dev/null; then
-    echo "lavapipe: WARNING: Debian 12's own Mesa 22 ends shader loops after 65,535 turns, so" \
-        "renders of more than a few deep samples per pixel fail (7 render tests fail on it);" \
+    echo "lavapipe: WARNING: Debian 12's own Mesa 22 renders 3.5x slower than Mesa 25 and ends" \
+        "shader loops after 65,535 turns (the renderer then takes one sample per dispatch);" \
         "unset LIGHTFARM_LAVAPIPE or fix the fetch above to use Mesa 25 from bookworm-backports" >&2
 fi
 unset lf_mesa_backports

@@ -13,6 +13,8 @@ const STAGE_MEGAKERNEL: u32 = 0u;
 const STAGE_PATHS: u32 = 1u;
 const STAGE_WALKS: u32 = 2u;
 const STAGE_GATHER: u32 = 3u;
+// Not a stage of the schedule: the renderer's start-up test of the driver (report_cut_loops).
+const STAGE_LOOP_PROBE: u32 = 4u;
 
 const NO_SLOT: u32 = 0xffffffffu;
 const JOB_VEC4S: u32 = 11u;

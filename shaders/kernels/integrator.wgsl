@@ -490,7 +490,9 @@ fn aux_passes(first: Ray, first_hit: Hit, p: u32, sample: u32, rays: ptr<functio
 // Mesa 25 and 26 set no such limit. A loop that must turn params.loop_check (8) times turns
 // fewer once the budget is spent (measured: 2 of 1,000; its bound is read from memory, so no
 // compiler can unroll it away); counters[2] then counts the invocations that saw it, and the
-// renderer refuses the render.
+// renderer refuses the render. On a driver that its STAGE_LOOP_PROBE dispatch found cutting
+// loops, the renderer gives each invocation one sample per dispatch, which stays far below the
+// budget; this check still catches a sample that alone exceeds it.
 fn report_cut_loops() {
     var turns = 0u;
     loop {
@@ -517,6 +519,12 @@ fn accumulate(p: u32, sum: vec3<f32>, passes: Passes) {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32,
         @builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     stack_base = lid;
+    if (pc.mode == STAGE_LOOP_PROBE) {
+        // The renderer asks once, with params.loop_check far above 65,535, whether this driver
+        // cuts loops (report_cut_loops).
+        report_cut_loops();
+        return;
+    }
     let walks = pc.mode == STAGE_WALKS;
     var p = 0u;
     var iterations = pc.sample_count;

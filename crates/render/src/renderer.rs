@@ -28,11 +28,15 @@ const JOB_BYTES: u64 = (11 + 1) * 16;
 const STAGE_PATHS: u32 = 1;
 const STAGE_WALKS: u32 = 2;
 const STAGE_GATHER: u32 = 3;
+const STAGE_LOOP_PROBE: u32 = 4;
 
 /// How many times the integrator's `report_cut_loops` loop has to turn: a driver that has
 /// ended the invocation's loops still turns it twice (Mesa 22 peels one turn), so the check
 /// asks for more. It is read from `params` so that no compiler can unroll the loop.
 const LOOP_CHECK_TURNS: u32 = 8;
+/// The turns of the same loop in the start-up probe (STAGE_LOOP_PROBE): above the 65,535 of
+/// all loops together that Mesa 22's llvmpipe allows an invocation.
+const LOOP_PROBE_TURNS: u32 = 100_000;
 
 /// The variable that replaces the built-in integrator with a SPIR-V file, for kernel work:
 /// `bench/kernel_ab.sh` compiles two `shaders/` trees (`examples/compile_kernel.rs`) and times
@@ -68,6 +72,9 @@ pub struct Renderer {
     count: bool,
     /// At most this many lightings share a camera path (None: as many as memory allows).
     group_limit: Option<usize>,
+    /// The driver ends an invocation's loops once they have turned 65,535 times in all (the
+    /// start-up probe found it): every dispatch then takes one sample per pixel.
+    cuts_loops: bool,
 }
 
 impl Renderer {
@@ -90,17 +97,36 @@ impl Renderer {
             counting: None,
             count: false,
             group_limit: None,
+            cuts_loops: false,
         };
-        renderer.warm_up()?;
-        Ok(renderer)
+        let cuts_loops = renderer.warm_up()?;
+        if cuts_loops {
+            let info = renderer.ctx.info();
+            tracing::warn!(
+                device = %info.name,
+                driver = %info.driver,
+                "this driver ends shader loops after 65,535 turns (Mesa 22's llvmpipe): rendering \
+                 one sample per pixel and dispatch, which is slower; Mesa 25 or newer has no such \
+                 limit (source scripts/lavapipe-backports.sh)"
+            );
+        }
+        Ok(Renderer {
+            cuts_loops,
+            ..renderer
+        })
     }
 
     /// lavapipe compiles a pipeline with LLVM on its first dispatch (seconds for the
-    /// integrator); an empty dispatch here keeps that out of every render's timing and progress.
-    fn warm_up(&self) -> Result<(), RenderError> {
+    /// integrator); a dispatch here keeps that out of every render's timing and progress. It is
+    /// the probe of whether the driver cuts loops short (STAGE_LOOP_PROBE), which it answers.
+    fn warm_up(&self) -> Result<bool, RenderError> {
+        let params = Params {
+            loop_check: LOOP_PROBE_TURNS,
+            ..Params::default()
+        };
         let bound = Bound::upload(
             &self.ctx,
-            &Params::default(),
+            &params,
             &PackedScene::empty(),
             &PackedEnv::default(),
         )?;
@@ -108,12 +134,20 @@ impl Renderer {
             .map(|_| GpuBuffer::zeroed(&self.ctx, "warm-up", 16))
             .collect::<Result<_, _>>()?;
         let bindings = bound.bindings([&rw[0], &rw[1], &rw[2], &rw[3], &rw[4]], &self.tables);
-        self.integrator.dispatch_resources(
-            &bindings,
-            bytemuck::bytes_of(&Push::default()),
-            [1, 1, 1],
-        )?;
-        Ok(())
+        let push = Push {
+            mode: STAGE_LOOP_PROBE,
+            ..Push::default()
+        };
+        self.integrator
+            .dispatch_resources(&bindings, bytemuck::bytes_of(&push), [1, 1, 1])?;
+        let counters: Vec<u32> = rw[2].read()?;
+        Ok(counters[2] > 0)
+    }
+
+    /// Whether the driver ends an invocation's loops after 65,535 turns in all, so that every
+    /// dispatch takes one sample per pixel (found by the start-up probe).
+    pub fn cuts_loops(&self) -> bool {
+        self.cuts_loops
     }
 
     /// Chooses where subsurface walks run for the renders that follow (the megakernel unless
@@ -296,7 +330,11 @@ impl Renderer {
         } else {
             (2 << 20) / (1 + group as u64)
         };
-        let per_dispatch = (paths / pixels).clamp(1, settings.spp as u64) as u32;
+        let per_dispatch = if self.cuts_loops {
+            1
+        } else {
+            (paths / pixels).clamp(1, settings.spp as u64) as u32
+        };
         // The integrator's probe input is the walk-dispatch schedule's job slots.
         let jobs = GpuBuffer::zeroed(
             &self.ctx,

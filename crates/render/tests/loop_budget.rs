@@ -1,8 +1,9 @@
-//! A render whose invocations turn their loops more than 65,535 times in all: every sample is
-//! taken, or the renderer refuses the render naming the driver and the fix. Mesa 22's llvmpipe
-//! ends every loop of an invocation after that many turns (kernels/integrator.wgsl,
-//! `report_cut_loops`), and before the integrator checked for it this scene's pixels kept ~52
-//! of their 64 samples there while the image passed for converged.
+//! A render whose invocations would turn their loops more than 65,535 times in all: every
+//! sample is taken, or the renderer refuses the render naming the driver and the fix. Mesa 22's
+//! llvmpipe ends every loop of an invocation after that many turns (kernels/integrator.wgsl,
+//! `report_cut_loops`); before the integrator checked for it this scene's pixels kept ~52 of
+//! their 64 samples there while the image passed for converged. Since the renderer's start-up
+//! probe finds such a driver and gives it one sample per dispatch, the render completes there.
 
 mod common;
 
@@ -102,6 +103,24 @@ fn every_sample_is_taken_or_the_render_is_refused() {
             );
         }
         Err(e) => panic!("render failed: {e}"),
+    }
+}
+
+/// The renderer's start-up probe finds Mesa 22 cutting loops and Mesa 25 and 26 (and any
+/// driver that is not Mesa) not; on a driver that cuts them every dispatch takes one sample
+/// per pixel, which is what lets the render above finish there.
+#[test]
+fn the_start_up_probe_knows_which_drivers_cut_loops() {
+    let info = common::ctx().info().clone();
+    let cuts = common::renderer().cuts_loops();
+    match mesa_major(&info.driver) {
+        Some(22) => assert!(
+            cuts,
+            "{}: Mesa 22 cuts loops, the probe missed it",
+            info.driver
+        ),
+        Some(m) if m < 25 => {}
+        _ => assert!(!cuts, "{}: the probe says it cuts loops", info.driver),
     }
 }
 
