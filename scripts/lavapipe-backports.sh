@@ -73,7 +73,7 @@ lf_mesa_setup
 # and renders one sample per dispatch there, slower still. Say so wherever a Debian 12 shell is
 # left with it.
 if [ "$lf_mesa_backports" = 0 ] && grep -q '^VERSION_CODENAME=bookworm' /etc/os-release 2>/dev/null; then
-    echo "lavapipe: WARNING: Debian 12's own Mesa 22 renders 3.5x slower than Mesa 25 and ends" \
+    echo "lavapipe: WARNING: Debian 12's own Mesa 22 renders 6-7x slower than Mesa 25 and ends" \
         "shader loops after 65,535 turns (the renderer then takes one sample per dispatch);" \
         "unset LIGHTFARM_LAVAPIPE or fix the fetch above to use Mesa 25 from bookworm-backports" >&2
 fi
