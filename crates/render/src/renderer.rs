@@ -88,7 +88,7 @@ impl Renderer {
             std::mem::size_of::<Push>() as u32,
         )?;
         let tables = crate::tables::compute(&ctx)?;
-        let renderer = Renderer {
+        let mut renderer = Renderer {
             ctx,
             integrator,
             tables,
@@ -99,8 +99,8 @@ impl Renderer {
             group_limit: None,
             cuts_loops: false,
         };
-        let cuts_loops = renderer.warm_up()?;
-        if cuts_loops {
+        renderer.cuts_loops = renderer.warm_up()?;
+        if renderer.cuts_loops {
             let info = renderer.ctx.info();
             tracing::warn!(
                 device = %info.name,
@@ -110,10 +110,7 @@ impl Renderer {
                  limit (source scripts/lavapipe-backports.sh)"
             );
         }
-        Ok(Renderer {
-            cuts_loops,
-            ..renderer
-        })
+        Ok(renderer)
     }
 
     /// lavapipe compiles a pipeline with LLVM on its first dispatch (seconds for the

@@ -388,28 +388,6 @@ fn furnace_rough_metal_sphere_matches_the_ggx_albedo() {
     );
 }
 
-/// A white (albedo 1) Lambertian sphere of radius 0.3 inside a hollow glass shell (η = 1.5,
-/// radii 0.49 and 0.5; the inner wall faces inwards, towards the air it bounds).
-fn white_sphere_in_a_glass_shell() -> Scene {
-    let mut scene = Scene::default();
-    scene.add_mesh_instance(
-        shapes::icosphere(0.3, 5),
-        common::material(1.0, 0.0),
-        Mat4::IDENTITY,
-    );
-    let glass = common::clear_glass("glass");
-    scene.add_mesh_instance(shapes::icosphere(0.5, 5), glass.clone(), Mat4::IDENTITY);
-    let mut inner = shapes::icosphere(0.49, 5);
-    for t in inner.indices.chunks_exact_mut(3) {
-        t.swap(1, 2);
-    }
-    for n in &mut inner.normals {
-        *n = n.map(|c| -c);
-    }
-    scene.add_mesh_instance(inner, glass, Mat4::IDENTITY);
-    scene
-}
-
 /// Furnace with clear glass: nothing absorbs, so radiance is 1 everywhere inside the shell,
 /// and a camera between the sphere and the shell sees exactly 1. The light reaching the sphere
 /// through the glass is estimated twice — shadow rays through thin glass, and BSDF-sampled
@@ -421,7 +399,7 @@ fn furnace_white_sphere_inside_clear_glass_is_one() {
         lightfarm_render::scene::Camera::look_at(Vec3::new(0.0, 0.0, 0.45), Vec3::ZERO, 20.0)
             .expect("camera");
     let out = common::render_deep(
-        &white_sphere_in_a_glass_shell(),
+        &common::white_sphere_in_a_glass_shell(),
         camera,
         24,
         64,
@@ -458,7 +436,7 @@ fn furnace_white_sphere_seen_through_clear_glass() {
     // A camera ray gets through or not (σ ≈ 0.27 per sample): 256 spp over ~190 px puts the
     // mean's noise near 0.001.
     let out = common::render_deep(
-        &white_sphere_in_a_glass_shell(),
+        &common::white_sphere_in_a_glass_shell(),
         common::front_camera(),
         size,
         256,

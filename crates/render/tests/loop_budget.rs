@@ -7,35 +7,7 @@
 
 mod common;
 
-use glam::Mat4;
-use lightfarm_render::gpu_scene::pack_scene;
-use lightfarm_render::scene::{shapes, Scene};
-use lightfarm_render::{RenderError, RenderSettings};
-
-/// A white sphere in a glass shell: each camera ray crosses two lens surfaces before the
-/// passes find the sphere, and the paths shuttle between sphere and shell.
-fn sphere_in_a_glass_shell() -> Scene {
-    let mut scene = Scene::default();
-    scene.add_mesh_instance(
-        shapes::icosphere(0.3, 5),
-        common::material(1.0, 0.0),
-        Mat4::IDENTITY,
-    );
-    scene.add_mesh_instance(
-        shapes::icosphere(0.5, 5),
-        common::clear_glass("glass"),
-        Mat4::IDENTITY,
-    );
-    let mut inner = shapes::icosphere(0.49, 5);
-    for t in inner.indices.chunks_exact_mut(3) {
-        t.swap(1, 2);
-    }
-    for n in &mut inner.normals {
-        *n = n.map(|c| -c);
-    }
-    scene.add_mesh_instance(inner, common::clear_glass("glass"), Mat4::IDENTITY);
-    scene
-}
+use lightfarm_render::RenderError;
 
 /// The major version in a driver string such as "llvmpipe (Mesa 22.3.6 (LLVM 15.0.6))".
 fn mesa_major(driver: &str) -> Option<u32> {
@@ -47,23 +19,15 @@ fn mesa_major(driver: &str) -> Option<u32> {
 fn every_sample_is_taken_or_the_render_is_refused() {
     const SIZE: u32 = 16;
     // 256 pixels are one dispatch of 64 samples per invocation, ~1,000 traversals each: well
-    // over 65,535 loop turns per SIMD group.
-    let settings = RenderSettings {
-        width: SIZE,
-        height: SIZE,
-        spp: 64,
-        seed: 6,
-        max_depth: 16,
-        rr_depth: 16,
-        camera: common::front_camera(),
-        passes: Vec::new(),
-    };
-    let packed = pack_scene(&sphere_in_a_glass_shell()).expect("pack");
-    let result = common::renderer().render(
-        &packed,
-        &[common::constant_light(1.0)],
-        &settings,
-        &mut |_| {},
+    // over 65,535 loop turns per SIMD group. The scene's camera rays cross two lens surfaces
+    // before the passes find the sphere, and its paths shuttle between sphere and shell.
+    let result = common::try_render_deep(
+        &common::white_sphere_in_a_glass_shell(),
+        common::front_camera(),
+        SIZE,
+        64,
+        6,
+        Vec::new(),
     );
     let info = common::ctx().info().clone();
     match result {

@@ -141,6 +141,18 @@ pub fn render_deep(
     seed: u32,
     passes: Vec<lightfarm_render::passes::Pass>,
 ) -> RenderOutput {
+    try_render_deep(scene, camera, size, spp, seed, passes).expect("render")
+}
+
+/// `render_deep`, with the renderer's answer as it is.
+pub fn try_render_deep(
+    scene: &Scene,
+    camera: Camera,
+    size: u32,
+    spp: u32,
+    seed: u32,
+    passes: Vec<lightfarm_render::passes::Pass>,
+) -> Result<RenderOutput, lightfarm_render::RenderError> {
     let settings = RenderSettings {
         width: size,
         height: size,
@@ -152,9 +164,29 @@ pub fn render_deep(
         passes,
     };
     let packed = pack_scene(scene).expect("pack");
-    renderer()
-        .render(&packed, &[constant_light(1.0)], &settings, &mut |_| {})
-        .expect("render")
+    renderer().render(&packed, &[constant_light(1.0)], &settings, &mut |_| {})
+}
+
+/// A white (albedo 1) Lambertian sphere of radius 0.3 inside a hollow glass shell (η = 1.5,
+/// radii 0.49 and 0.5; the inner wall faces inwards, towards the air it bounds).
+pub fn white_sphere_in_a_glass_shell() -> Scene {
+    let mut scene = Scene::default();
+    scene.add_mesh_instance(
+        shapes::icosphere(0.3, 5),
+        material(1.0, 0.0),
+        Mat4::IDENTITY,
+    );
+    let glass = clear_glass("glass");
+    scene.add_mesh_instance(shapes::icosphere(0.5, 5), glass.clone(), Mat4::IDENTITY);
+    let mut inner = shapes::icosphere(0.49, 5);
+    for t in inner.indices.chunks_exact_mut(3) {
+        t.swap(1, 2);
+    }
+    for n in &mut inner.normals {
+        *n = n.map(|c| -c);
+    }
+    scene.add_mesh_instance(inner, glass, Mat4::IDENTITY);
+    scene
 }
 
 /// Pearson's chi-square goodness of fit as pbrt-v4 and Mitsuba 3 run it: cells with expected
