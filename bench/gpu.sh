@@ -116,7 +116,9 @@ print(f"{head}: {plain['seconds']:.2f} s, {plain['rays_per_second'] / 1e6:.2f} M
       f"({counted['seconds']:.2f} s counting); per ray {t['nodes_per_ray']:.2f} node tests, "
       f"{t['prims_per_ray']:.2f} primitive tests, {t['blas_per_ray']:.2f} BLAS entries; "
       f"deepest stack {t['max_depth']}, {t['overflows']} overflows, "
-      f"{t.get('nonfinite', 'n/a')} non-finite rays")
+      f"{t.get('nonfinite', 'n/a')} non-finite rays; SIMD width {t.get('simd_width', 'n/a')}, "
+      f"lanes busy {t.get('loop_lanes_busy') or 0:.3f} of the BLAS loop's turns and "
+      f"{t.get('prim_lanes_busy') or 0:.3f} of its primitive tests")
 PY
 done
 

@@ -1,5 +1,7 @@
 //! WGSL to SPIR-V for the renderer's kernels: `//!include path` lines (relative to `shaders/`)
-//! splice in shared code once per file, `TRAVERSAL_COUNTERS` is prepended, and naga validates
+//! splice in shared code once per file, `//!include_counters ON OFF` splices in ON in the
+//! kernels with traversal counters and OFF in the others (so that only the former use subgroup
+//! operations), `TRAVERSAL_COUNTERS` is prepended, and naga validates
 //! and writes SPIR-V with the project's options. One implementation for build.rs (every kernel,
 //! at build time) and `examples/compile_kernel.rs` (a kernel from any `shaders/` tree, for
 //! `bench/kernel_ab.sh`).
@@ -17,6 +19,7 @@ pub struct Compiled {
 fn expand(
     root: &Path,
     rel: &str,
+    counters: bool,
     seen: &mut HashSet<String>,
     out: &mut String,
     files: &mut Vec<PathBuf>,
@@ -27,10 +30,21 @@ fn expand(
     let path = root.join(rel);
     let src = std::fs::read_to_string(&path)
         .map_err(|e| format!("cannot read shader {}: {e}", path.display()))?;
-    files.push(path);
+    files.push(path.clone());
     for line in src.lines() {
         if let Some(inc) = line.trim().strip_prefix("//!include ") {
-            expand(root, inc.trim(), seen, out, files)?;
+            expand(root, inc.trim(), counters, seen, out, files)?;
+        } else if let Some(pair) = line.trim().strip_prefix("//!include_counters ") {
+            let pair: Vec<&str> = pair.split_whitespace().collect();
+            let [on, off] = pair[..] else {
+                return Err(format!(
+                    "{}: `{}` needs two files: //!include_counters ON OFF",
+                    path.display(),
+                    line.trim()
+                ));
+            };
+            let chosen = if counters { on } else { off };
+            expand(root, chosen, counters, seen, out, files)?;
         } else {
             out.push_str(line);
             out.push('\n');
@@ -59,7 +73,14 @@ pub fn compile(
     let rel = format!("kernels/{file}.wgsl");
     let mut wgsl = format!("const TRAVERSAL_COUNTERS: bool = {counters};\n");
     let mut files = Vec::new();
-    expand(root, &rel, &mut HashSet::new(), &mut wgsl, &mut files)?;
+    expand(
+        root,
+        &rel,
+        counters,
+        &mut HashSet::new(),
+        &mut wgsl,
+        &mut files,
+    )?;
     let module =
         naga::front::wgsl::parse_str(&wgsl).map_err(|e| e.emit_to_string_with_path(&wgsl, &rel))?;
     let info = naga::valid::Validator::new(

@@ -135,7 +135,8 @@ const INV_PI: f32 = 0.318309886183791;
 // The integrator's counters. Words 0-3 are reset by the host after each dispatch (each round of
 // three in the walk-dispatch schedule): [0] rays traced, [1] the walk queue's length
 // (inc/walk_queue.wgsl), [2] invocations whose loops the driver cut (report_cut_loops), [3]
-// unused. From TC_FIRST on: the traversal counters of integrator_counters.
+// the SIMD-group width in integrator_counters (unused otherwise). From TC_FIRST on: the
+// traversal counters of integrator_counters.
 @group(0) @binding(13) var<storage, read_write> counters: array<atomic<u32>>;
 // The probe kernels' input; the integrator's walk-dispatch schedule keeps its job slots here
 // (inc/walk_queue.wgsl), hence read_write.

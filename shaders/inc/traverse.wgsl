@@ -6,6 +6,8 @@
 // A node is 5 vec4<u32>: (p.xyz, e[0..3] | imask << 24), (child_base_idx, primitive_base_idx,
 // child_meta[0..4], child_meta[4..8]), (min_x lo/hi, max_x lo/hi), (min_y ...), (min_z ...).
 
+//!include_counters inc/simd_counting.wgsl inc/simd_none.wgsl
+
 const NODE_VEC4S: u32 = 5u;
 const TRI_ATTR_VEC4S: u32 = 5u;
 const NO_MATERIAL: u32 = 0xffffffffu;
@@ -36,6 +38,11 @@ var<private> tc_blas: u32;      // BLAS entries (instances whose box a ray reach
 var<private> tc_depth: u32;     // deepest traversal stack (BLAS or TLAS entries)
 var<private> tc_overflow: u32;  // pushes onto a full stack (a subtree lost)
 var<private> tc_nonfinite: u32; // rays with a NaN or infinite origin or direction
+// Turns of the BLAS loop (per invocation), and turns of it and of its primitive tests counted
+// once per SIMD group, by the group's leader (inc/simd_counting.wgsl).
+var<private> tc_turns: u32;
+var<private> tc_simd_turns: u32;
+var<private> tc_simd_prims: u32;
 
 fn tc_push(sp: u32, cap: u32) {
     if (TRAVERSAL_COUNTERS) {
@@ -325,11 +332,20 @@ fn traverse_blas(inst_id: u32, origin: vec3<f32>, dir: vec3<f32>, tmin: f32, bes
         tc_blas += 1u;
     }
     loop {
+        if (TRAVERSAL_COUNTERS) {
+            tc_turns += 1u;
+            if (simd_leader()) {
+                tc_simd_turns += 1u;
+            }
+        }
         while (prims.y != 0u) {
             let local = firstLeadingBit(prims.y);
             prims.y &= ~(1u << local);
             if (TRAVERSAL_COUNTERS) {
                 tc_prims += 1u;
+                if (simd_leader()) {
+                    tc_simd_prims += 1u;
+                }
             }
             let tmax = select((*best).t, 3.4e38, (*best).t < 0.0);
             var slot: u32;

@@ -40,9 +40,11 @@ const SHADOW_LENS_LAYERS: u32 = 4u;
 const MIXTURE_STREAM: u32 = 0xfffffff0u;
 
 // The traversal counters' per-pixel words in `counters` (integrator_counters only; the renderer
-// sizes the buffer): rays, node tests, primitive tests, BLAS entries, deepest stack, overflows.
+// sizes the buffer): rays, node tests, primitive tests, BLAS entries, deepest stack, overflows,
+// non-finite rays, BLAS loop turns, and the SIMD-group turns of the BLAS loop and of its
+// primitive tests (each counted at the group leader's pixel: only their sums mean something).
 const TC_FIRST: u32 = 4u;
-const TC_WORDS: u32 = 7u;
+const TC_WORDS: u32 = 10u;
 
 // The appendix passes (pc.passes != 0; the renderer binds their accumulator at probe_out):
 // PASS_VEC4S per pixel and lighting of the dispatch (slot k = lighting pc.light + k at
@@ -519,6 +521,13 @@ fn accumulate(p: u32, sum: vec3<f32>, passes: Passes) {
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32,
         @builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     stack_base = lid;
+    if (TRAVERSAL_COUNTERS) {
+        // Before any invocation returns, so that the whole SIMD group is active.
+        let width = simd_width();
+        if (lid == 0u) {
+            atomicMax(&counters[3], width);
+        }
+    }
     if (pc.mode == STAGE_LOOP_PROBE) {
         // The renderer asks once, with params.loop_check far above 65,535, whether this driver
         // cuts loops (report_cut_loops).
@@ -590,6 +599,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         atomicMax(&counters[b + 4u], tc_depth);
         atomicAdd(&counters[b + 5u], tc_overflow);
         atomicAdd(&counters[b + 6u], tc_nonfinite);
+        atomicAdd(&counters[b + 7u], tc_turns);
+        atomicAdd(&counters[b + 8u], tc_simd_turns);
+        atomicAdd(&counters[b + 9u], tc_simd_prims);
     }
     atomicAdd(&counters[0], rays);
     report_cut_loops();

@@ -7,7 +7,7 @@ use serde::Serialize;
 
 /// Words per pixel after the renderer's four (shaders/kernels/integrator.wgsl `TC_WORDS`).
 pub(crate) const TC_FIRST: usize = 4;
-pub(crate) const TC_WORDS: usize = 7;
+pub(crate) const TC_WORDS: usize = 10;
 
 /// Per-pixel sums over every ray the pixel's paths cast (camera, bounce, shadow, walk, aux).
 #[derive(Clone, Debug, Default)]
@@ -29,6 +29,17 @@ pub struct TraversalCounts {
     /// Rays with a NaN or infinite origin or direction: traced as misses, and a bug upstream
     /// (a NaN shading frame, say) wherever they appear.
     pub nonfinite: Vec<u32>,
+    /// Turns of the BLAS traversal loop (each does a node test, a pop, or both, after the
+    /// primitive tests it starts with).
+    pub turns: Vec<u32>,
+    /// Turns of the BLAS loop and of its primitive tests counted once per SIMD group, at the
+    /// pixel of the group's first active invocation: only their sums over the image mean
+    /// something.
+    pub simd_turns: Vec<u32>,
+    pub simd_prims: Vec<u32>,
+    /// Invocations the device runs in lockstep (8 on lavapipe with 256-bit vectors, 32 on
+    /// NVIDIA).
+    pub simd_width: u32,
 }
 
 /// Totals over the image, per ray.
@@ -41,10 +52,23 @@ pub struct TraversalSummary {
     pub max_depth: u32,
     pub overflows: u64,
     pub nonfinite: u64,
+    pub simd_width: u32,
+    /// Share of the SIMD group's lanes that took part in a turn of the BLAS loop, over every
+    /// turn: the rest had left the loop already (their ray was done while another lane's was
+    /// not) and waited. `None` without a turn.
+    pub loop_lanes_busy: Option<f64>,
+    /// The same for the primitive tests: lanes without a primitive to test wait while the
+    /// others test theirs.
+    pub prim_lanes_busy: Option<f64>,
 }
 
 impl TraversalCounts {
-    pub(crate) fn from_words(words: &[u32], width: u32, height: u32) -> TraversalCounts {
+    pub(crate) fn from_words(
+        words: &[u32],
+        width: u32,
+        height: u32,
+        simd_width: u32,
+    ) -> TraversalCounts {
         let pixels = width as usize * height as usize;
         let field = |k: usize| -> Vec<u32> {
             (0..pixels)
@@ -61,6 +85,10 @@ impl TraversalCounts {
             max_depth: field(4),
             overflows: field(5),
             nonfinite: field(6),
+            turns: field(7),
+            simd_turns: field(8),
+            simd_prims: field(9),
+            simd_width,
         }
     }
 
@@ -68,6 +96,10 @@ impl TraversalCounts {
         let sum = |v: &[u32]| v.iter().map(|&x| x as u64).sum::<u64>();
         let rays = sum(&self.rays);
         let per_ray = |v: &[u32]| sum(v) as f64 / rays.max(1) as f64;
+        let busy = |lanes: &[u32], groups: &[u32]| {
+            let turns = sum(groups) * self.simd_width as u64;
+            (turns > 0).then(|| sum(lanes) as f64 / turns as f64)
+        };
         TraversalSummary {
             rays,
             nodes_per_ray: per_ray(&self.nodes),
@@ -76,6 +108,9 @@ impl TraversalCounts {
             max_depth: self.max_depth.iter().copied().max().unwrap_or(0),
             overflows: sum(&self.overflows),
             nonfinite: sum(&self.nonfinite),
+            simd_width: self.simd_width,
+            loop_lanes_busy: busy(&self.turns, &self.simd_turns),
+            prim_lanes_busy: busy(&self.prims, &self.simd_prims),
         }
     }
 
@@ -131,11 +166,13 @@ mod tests {
     #[test]
     fn words_map_to_fields_and_the_summary_is_per_ray() {
         // Two pixels: 10 rays / 40 nodes / 20 prims / 10 blas / depth 3 / 0 overflows / 0
-        // non-finite, and 30 rays / 200 nodes / 40 prims / 30 blas / depth 7 / 2 overflows / 5
-        // non-finite.
+        // non-finite / 60 turns / 10 SIMD turns / 5 SIMD primitive turns, and 30 rays / 200
+        // nodes / 40 prims / 30 blas / depth 7 / 2 overflows / 5 non-finite / 260 turns / 30
+        // SIMD turns / 10 SIMD primitive turns, in SIMD groups of 8.
         let mut words = vec![99u32; TC_FIRST];
-        words.extend([10, 40, 20, 10, 3, 0, 0, 30, 200, 40, 30, 7, 2, 5]);
-        let c = TraversalCounts::from_words(&words, 2, 1);
+        words.extend([10, 40, 20, 10, 3, 0, 0, 60, 10, 5]);
+        words.extend([30, 200, 40, 30, 7, 2, 5, 260, 30, 10]);
+        let c = TraversalCounts::from_words(&words, 2, 1, 8);
         assert_eq!(c.nodes, vec![40, 200]);
         assert_eq!(c.overflows, vec![0, 2]);
         assert_eq!(c.nonfinite, vec![0, 5]);
@@ -147,11 +184,16 @@ mod tests {
         assert_eq!(s.max_depth, 7);
         assert_eq!(s.overflows, 2);
         assert_eq!(s.nonfinite, 5);
+        assert_eq!(s.simd_width, 8);
+        assert_eq!(s.loop_lanes_busy, Some(320.0 / (40.0 * 8.0)));
+        assert_eq!(s.prim_lanes_busy, Some(60.0 / (15.0 * 8.0)));
         assert_eq!(c.nodes_per_ray(), vec![4.0, 200.0 / 30.0]);
         let heat = c.heat_map(Some(8.0));
         assert_eq!(heat[1], [0, 255, 0], "overflow marked");
         assert_eq!(heat[0], super::heat(0.5));
         assert_eq!(super::heat(0.0), [0, 0, 0]);
         assert_eq!(super::heat(1.0), [255, 255, 255]);
+        let none = TraversalCounts::from_words(&[0; TC_FIRST + TC_WORDS], 1, 1, 8).summary();
+        assert_eq!((none.loop_lanes_busy, none.prim_lanes_busy), (None, None));
     }
 }

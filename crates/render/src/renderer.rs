@@ -178,6 +178,15 @@ impl Renderer {
     /// follow. Their kernel is compiled on first use (seconds on lavapipe); it casts the same
     /// rays as the production kernel, a little slower.
     pub fn set_traversal_counters(&mut self, on: bool) -> Result<(), RenderError> {
+        if on && !self.ctx.has_subgroup_counting() {
+            return Err(RenderError::InvalidSettings(format!(
+                "traversal counters need subgroup ballot and arithmetic operations in compute \
+                 shaders, which {} ({}) does not offer: count on another device (lavapipe has \
+                 them) or render without counters",
+                self.ctx.info().name,
+                self.ctx.info().driver
+            )));
+        }
         if on && self.counting.is_none() {
             self.counting = Some(ComputeKernel::with_bindings(
                 &self.ctx,
@@ -360,6 +369,8 @@ impl Renderer {
         let total = settings.spp as u64 * groups_of_lights.len() as u64;
         let mut done = 0u64;
         let mut rays = 0u64;
+        // integrator_counters writes its SIMD-group width to word 3 of every dispatch.
+        let mut simd_width = 0u32;
         for &(light, shared) in &groups_of_lights {
             let mut s = 0u32;
             while s < settings.spp {
@@ -414,6 +425,7 @@ impl Renderer {
                     });
                 }
                 rays += c[0] as u64;
+                simd_width = simd_width.max(c[3]);
                 counters.write(&[0u32; 4])?;
                 s += count;
                 done += count as u64;
@@ -445,7 +457,12 @@ impl Renderer {
         }
 
         let traversal = if counting {
-            Some(TraversalCounts::from_words(&counters.read()?, w, h))
+            Some(TraversalCounts::from_words(
+                &counters.read()?,
+                w,
+                h,
+                simd_width,
+            ))
         } else {
             None
         };

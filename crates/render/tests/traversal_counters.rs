@@ -203,3 +203,53 @@ fn the_ict_heads_cost_the_traversal_what_a_comparable_scan_costs() {
         }
     }
 }
+
+#[test]
+fn simd_lanes_are_all_busy_when_every_ray_does_the_same_work() {
+    // A sphere far to the side: every camera ray misses it and its walk is one turn of the BLAS
+    // loop (the root's test, no child hit), the same in every lane, so every lane of every
+    // SIMD group takes part in every turn, and no primitive is tested. 16² keeps every group
+    // full on 8- and 32-wide devices.
+    let mut scene = Scene::default();
+    scene.add_mesh_instance(
+        shapes::icosphere(0.5, 3),
+        common::material(0.5, 0.0),
+        Mat4::from_translation(Vec3::new(100.0, 0.0, 0.0)),
+    );
+    let r = counting();
+    let t = render(&r, &scene, common::front_camera(), 16, 2, 2)
+        .traversal
+        .expect("counters")
+        .summary();
+    assert!(
+        t.simd_width.is_power_of_two() && t.simd_width <= 128,
+        "SIMD width {}",
+        t.simd_width
+    );
+    assert_eq!(t.rays, 16 * 16 * 2);
+    assert_eq!(t.loop_lanes_busy, Some(1.0), "{t:?}");
+    assert_eq!(t.prim_lanes_busy, None, "{t:?}");
+}
+
+#[test]
+fn simd_lanes_wait_for_each_other_on_a_sphere() {
+    // Camera rays onto the sphere and off it, then shadow and bounce rays in random
+    // directions: lanes of a group end their walks at different turns, and only some lanes of
+    // a group have a leaf's triangles to test at a time.
+    let r = counting();
+    let t = render(
+        &r,
+        &common::sphere_scene(0.5),
+        common::front_camera(),
+        32,
+        4,
+        4,
+    )
+    .traversal
+    .expect("counters")
+    .summary();
+    let busy = t.loop_lanes_busy.expect("BLAS loop turns");
+    let prims = t.prim_lanes_busy.expect("primitive tests");
+    assert!(busy > 0.0 && busy < 1.0, "{t:?}");
+    assert!(prims > 0.0 && prims < busy, "{t:?}");
+}

@@ -28,6 +28,7 @@ pub struct GpuContext {
     submitter: Mutex<Submitter>,
     memory: vk::PhysicalDeviceMemoryProperties,
     limits: vk::PhysicalDeviceLimits,
+    subgroup: vk::PhysicalDeviceSubgroupProperties<'static>,
     info: DeviceInfo,
     cpu: bool,
     force_staging: bool,
@@ -73,11 +74,20 @@ impl GpuContext {
                 return Err(e);
             }
         };
-        // SAFETY: the handle came from this instance.
-        let (memory, properties) = unsafe {
+        // SAFETY: the handle came from this instance; every device here has Vulkan 1.1, which
+        // defines the subgroup properties.
+        let (memory, properties, subgroup) = unsafe {
+            let mut subgroup = vk::PhysicalDeviceSubgroupProperties::default();
+            let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut subgroup);
+            instance.get_physical_device_properties2(chosen.handle, &mut p2);
+            let properties = p2.properties;
             (
                 instance.get_physical_device_memory_properties(chosen.handle),
-                instance.get_physical_device_properties(chosen.handle),
+                properties,
+                vk::PhysicalDeviceSubgroupProperties {
+                    p_next: std::ptr::null_mut(),
+                    ..subgroup
+                },
             )
         };
         let force_staging = std::env::var(FORCE_STAGING_ENV).is_ok_and(|v| v == "1");
@@ -97,6 +107,7 @@ impl GpuContext {
             submitter: Mutex::new(submitter),
             memory,
             limits: properties.limits,
+            subgroup,
             cpu: chosen.info.kind == "cpu",
             info: chosen.info,
             force_staging,
@@ -110,6 +121,16 @@ impl GpuContext {
     /// The largest buffer a shader may bind, in bytes (128 MiB on lavapipe).
     pub fn max_storage_buffer_range(&self) -> u64 {
         u64::from(self.limits.max_storage_buffer_range)
+    }
+
+    /// Whether compute shaders may use the subgroup operations the traversal counters' kernel
+    /// uses (ballot and arithmetic, optional in Vulkan 1.1; every desktop driver has them).
+    pub fn has_subgroup_counting(&self) -> bool {
+        let ops = vk::SubgroupFeatureFlags::BALLOT | vk::SubgroupFeatureFlags::ARITHMETIC;
+        self.subgroup
+            .supported_stages
+            .contains(vk::ShaderStageFlags::COMPUTE)
+            && self.subgroup.supported_operations.contains(ops)
     }
 
     /// Whether this is a CPU implementation, where dispatches are orders of magnitude slower.
