@@ -12,7 +12,7 @@ struct Params {
     num_lights: u32,
     tlas_node_offset: u32, // NO_NODE when the scene is empty
     scene_flags: u32,      // SCENE_HAS_LENS (some material is MAT_FLAG_CLEAR), SCENE_ONE_INSTANCE
-    tile_row_stride: u32,  // crates/render/src/tile_order.rs; 0 or 1 = image order
+    pixel_queue: u32,      // 1: invocations take pixels off a queue (kernels/integrator.wgsl main)
     loop_check: u32,       // LOOP_CHECK_TURNS (kernels/integrator.wgsl, report_cut_loops)
     _pad2: u32,
     cam_pos: vec4<f32>,
@@ -132,11 +132,12 @@ const INV_PI: f32 = 0.318309886183791;
 @group(0) @binding(10) var<storage, read> env_desc: array<EnvDesc>;
 @group(0) @binding(11) var<storage, read_write> accum_lit: array<vec4<f32>>;
 @group(0) @binding(12) var<storage, read_write> accum_aux: array<vec4<f32>>;
-// The integrator's counters. Words 0-3 are reset by the host after each dispatch (each round of
+// The integrator's counters. Words 0-7 are reset by the host after each dispatch (each round of
 // three in the walk-dispatch schedule): [0] rays traced, [1] the walk queue's length
 // (inc/walk_queue.wgsl), [2] invocations whose loops the driver cut (report_cut_loops), [3]
-// the SIMD-group width in integrator_counters (unused otherwise). From TC_FIRST on: the
-// traversal counters of integrator_counters.
+// the SIMD-group width in integrator_counters (unused otherwise), [4] the pixel queue's next
+// entry (params.pixel_queue), [5-7] unused. From TC_FIRST on: the traversal counters of
+// integrator_counters.
 @group(0) @binding(13) var<storage, read_write> counters: array<atomic<u32>>;
 // The probe kernels' input; the integrator's walk-dispatch schedule keeps its job slots here
 // (inc/walk_queue.wgsl), hence read_write.

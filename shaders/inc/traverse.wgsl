@@ -44,6 +44,19 @@ var<private> tc_turns: u32;
 var<private> tc_simd_turns: u32;
 var<private> tc_simd_prims: u32;
 
+// After each pixel's flush (kernels/integrator.wgsl): an invocation may render several.
+fn tc_reset() {
+    tc_nodes = 0u;
+    tc_prims = 0u;
+    tc_blas = 0u;
+    tc_depth = 0u;
+    tc_overflow = 0u;
+    tc_nonfinite = 0u;
+    tc_turns = 0u;
+    tc_simd_turns = 0u;
+    tc_simd_prims = 0u;
+}
+
 fn tc_push(sp: u32, cap: u32) {
     if (TRAVERSAL_COUNTERS) {
         tc_depth = max(tc_depth, sp + 1u);

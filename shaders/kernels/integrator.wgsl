@@ -43,7 +43,7 @@ const MIXTURE_STREAM: u32 = 0xfffffff0u;
 // sizes the buffer): rays, node tests, primitive tests, BLAS entries, deepest stack, overflows,
 // non-finite rays, BLAS loop turns, and the SIMD-group turns of the BLAS loop and of its
 // primitive tests (each counted at the group leader's pixel: only their sums mean something).
-const TC_FIRST: u32 = 4u;
+const TC_FIRST: u32 = 8u;
 const TC_WORDS: u32 = 10u;
 
 // The appendix passes (pc.passes != 0; the renderer binds their accumulator at probe_out):
@@ -515,8 +515,19 @@ fn accumulate(p: u32, sum: vec3<f32>, passes: Passes) {
     }
 }
 
+// Where the pixel queue's next entry is counted (params.pixel_queue; reset by the host after
+// every dispatch): entry j is pixel j mod 64 of 8x8 tile j / 64, tiles in image order.
+const PIXEL_QUEUE_WORD: u32 = 4u;
+
 // pc.mode is the stage (inc/walk_queue.wgsl): the megakernel, or one of the walk-dispatch
 // schedule's three. One call of trace_path serves all of them (lavapipe inlines every call).
+//
+// Which pixels an invocation renders: on a GPU, the one its workgroup and index name. With
+// params.pixel_queue (CPU devices), every invocation of the megakernel and of STAGE_PATHS takes
+// pixels off a queue until it is empty. llvmpipe hands each thread one contiguous block of
+// workgroups and does not rebalance, so a thread whose block costs less would sit idle until
+// the other's ends (1.80 of 2 cores busy on a head render, Mesa 25); off the queue a thread
+// renders until the image is done. A pixel's samples do not depend on who renders it, so the images are the same.
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32,
         @builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -535,74 +546,100 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation
         return;
     }
     let walks = pc.mode == STAGE_WALKS;
-    var p = 0u;
-    var iterations = pc.sample_count;
-    var job = NO_SLOT;
-    var pix = gid.xy;
-    if (walks) {
-        let k = lid + 64u * (wid.x + wid.y * nwg.x);
-        if (k >= atomicLoad(&counters[1])) {
-            return;
-        }
-        job = bitcast<u32>(probe_in[queue_entry(k)].x);
-        iterations = 1u;
-    } else {
-        // Tile rows in a Weyl order on lavapipe, so that each thread's contiguous block of
-        // workgroups spreads over the image (crates/render/src/tile_order.rs).
-        let row = (wid.y * max(params.tile_row_stride, 1u)) % nwg.y;
-        pix = vec2<u32>(wid.x * 8u + (lid & 7u), row * 8u + (lid >> 3u));
-        if (pix.x >= params.width || pix.y >= params.height) {
-            return;
-        }
-        p = pix.y * params.width + pix.x;
-        if (pc.mode == STAGE_GATHER) {
-            job_gather(p);
-            report_cut_loops();
-            return;
-        }
-    }
+    let queued = params.pixel_queue != 0u && (pc.mode == STAGE_MEGAKERNEL || pc.mode == STAGE_PATHS);
+    let tiles_x = (params.width + 7u) / 8u;
+    let queue_len = 64u * tiles_x * ((params.height + 7u) / 8u);
     let pixels = params.width * params.height;
-    var rays = 0u;
-    for (var i = 0u; i < iterations; i++) {
-        let s = pc.sample_start + i;
-        var rng: Rng;
-        var start: PathStart;
-        var go = true;
-        var defer_slot = NO_SLOT;
+    var all_rays = 0u;
+    var first = true;
+    loop {
+        var p = 0u;
+        var iterations = pc.sample_count;
+        var job = NO_SLOT;
+        var pix = gid.xy;
+        var mine = true;
         if (walks) {
-            go = job_resume(job, &rng, &rays, &start);
+            if (!first) {
+                break;
+            }
+            let k = lid + 64u * (wid.x + wid.y * nwg.x);
+            mine = k < atomicLoad(&counters[1]);
+            if (mine) {
+                job = bitcast<u32>(probe_in[queue_entry(k)].x);
+            }
+            iterations = 1u;
         } else {
-            rng = rng_init(p, s, params.seed);
-            start.ray = camera_ray(pix, rng_next2(&rng));
-            start.throughput = vec3<f32>(1.0);
-            if (pc.mode == STAGE_PATHS) {
-                defer_slot = i * pixels + p;
-                job_clear(defer_slot);
+            var tile = wid.xy;
+            var q = lid;
+            if (queued) {
+                let j = atomicAdd(&counters[PIXEL_QUEUE_WORD], 1u);
+                if (j >= queue_len) {
+                    break;
+                }
+                let t = j >> 6u;
+                tile = vec2<u32>(t % tiles_x, t / tiles_x);
+                q = j & 63u;
+            } else if (!first) {
+                break;
+            }
+            pix = tile * 8u + vec2<u32>(q & 7u, q >> 3u);
+            mine = pix.x < params.width && pix.y < params.height;
+            p = pix.y * params.width + pix.x;
+            if (pc.mode == STAGE_GATHER) {
+                if (mine) {
+                    job_gather(p);
+                }
+                mine = false;
             }
         }
-        var ps = passes_zero();
-        var l = vec3<f32>(0.0);
-        if (go) {
-            l = trace_path(start, p, s, defer_slot, &rng, &rays, &ps);
+        first = false;
+        if (!mine) {
+            continue;
         }
-        if (walks) {
-            // The gather stage filters and adds it, one writer per pixel.
-            job_finish(job, l, ps);
+        var rays = 0u;
+        for (var i = 0u; i < iterations; i++) {
+            let s = pc.sample_start + i;
+            var rng: Rng;
+            var start: PathStart;
+            var go = true;
+            var defer_slot = NO_SLOT;
+            if (walks) {
+                go = job_resume(job, &rng, &rays, &start);
+            } else {
+                rng = rng_init(p, s, params.seed);
+                start.ray = camera_ray(pix, rng_next2(&rng));
+                start.throughput = vec3<f32>(1.0);
+                if (pc.mode == STAGE_PATHS) {
+                    defer_slot = i * pixels + p;
+                    job_clear(defer_slot);
+                }
+            }
+            var ps = passes_zero();
+            var l = vec3<f32>(0.0);
+            if (go) {
+                l = trace_path(start, p, s, defer_slot, &rng, &rays, &ps);
+            }
+            if (walks) {
+                // The gather stage filters and adds it, one writer per pixel.
+                job_finish(job, l, ps);
+            }
+        }
+        all_rays += rays;
+        if (TRAVERSAL_COUNTERS && !walks) {
+            let b = TC_FIRST + TC_WORDS * p;
+            atomicAdd(&counters[b], rays);
+            atomicAdd(&counters[b + 1u], tc_nodes);
+            atomicAdd(&counters[b + 2u], tc_prims);
+            atomicAdd(&counters[b + 3u], tc_blas);
+            atomicMax(&counters[b + 4u], tc_depth);
+            atomicAdd(&counters[b + 5u], tc_overflow);
+            atomicAdd(&counters[b + 6u], tc_nonfinite);
+            atomicAdd(&counters[b + 7u], tc_turns);
+            atomicAdd(&counters[b + 8u], tc_simd_turns);
+            atomicAdd(&counters[b + 9u], tc_simd_prims);
+            tc_reset();
         }
     }
-    if (TRAVERSAL_COUNTERS && !walks) {
-        let b = TC_FIRST + TC_WORDS * p;
-        atomicAdd(&counters[b], rays);
-        atomicAdd(&counters[b + 1u], tc_nodes);
-        atomicAdd(&counters[b + 2u], tc_prims);
-        atomicAdd(&counters[b + 3u], tc_blas);
-        atomicMax(&counters[b + 4u], tc_depth);
-        atomicAdd(&counters[b + 5u], tc_overflow);
-        atomicAdd(&counters[b + 6u], tc_nonfinite);
-        atomicAdd(&counters[b + 7u], tc_turns);
-        atomicAdd(&counters[b + 8u], tc_simd_turns);
-        atomicAdd(&counters[b + 9u], tc_simd_prims);
-    }
-    atomicAdd(&counters[0], rays);
+    atomicAdd(&counters[0], all_rays);
     report_cut_loops();
 }

@@ -5,8 +5,9 @@
 
 use serde::Serialize;
 
-/// Words per pixel after the renderer's four (shaders/kernels/integrator.wgsl `TC_WORDS`).
-pub(crate) const TC_FIRST: usize = 4;
+/// The renderer's own words come first (shaders/inc/bindings.wgsl `counters`), then TC_WORDS per
+/// pixel (shaders/kernels/integrator.wgsl `TC_FIRST`, `TC_WORDS`).
+pub(crate) const TC_FIRST: usize = 8;
 pub(crate) const TC_WORDS: usize = 10;
 
 /// Per-pixel sums over every ray the pixel's paths cast (camera, bounce, shadow, walk, aux).

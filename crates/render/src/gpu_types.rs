@@ -33,9 +33,9 @@ pub struct Params {
     pub tlas_node_offset: u32,
     /// SCENE_HAS_LENS | SCENE_ONE_INSTANCE
     pub scene_flags: u32,
-    /// The integrator renders workgroup row r at tile row r × stride mod rows
-    /// (`tile_order.rs`); 0 or 1 keeps image order.
-    pub tile_row_stride: u32,
+    /// 1: the integrator's invocations take their pixels off a queue until it is empty (CPU
+    /// devices, `Renderer::set_pixel_queue`); 0: one pixel each, named by its workgroup.
+    pub pixel_queue: u32,
     /// The turns of the integrator's cut-loop check: LOOP_CHECK_TURNS (renderer.rs).
     pub loop_check: u32,
     pub _pad: u32,

@@ -3,8 +3,7 @@
 //! Layout: `scene` (CPU scene from glTF), `gpu_scene` / `gpu_env` (flattening into the shaders'
 //! arrays, BVH builds), `gpu_types` (the shared `#[repr(C)]` structs), `vulkan` (the only module
 //! that touches ash), `renderer` (dispatching the integrator; `settings`, `render_output` and `bound` hold what it
-//! is asked, what it returns and the buffers it binds; `tile_order` spreads a dispatch's tiles
-//! over lavapipe's threads), `output` (EXR and PNG), `probe`
+//! is asked, what it returns and the buffers it binds), `output` (EXR and PNG), `probe`
 //! (running the sampling routines and traversal on the device for tests), `tables` (the layered
 //! model's directional-albedo tables), `hair` (the fibre material's absorption and colour).
 
@@ -25,7 +24,6 @@ pub mod schedule;
 pub mod settings;
 pub mod shaders;
 pub mod tables;
-pub mod tile_order;
 pub mod vulkan;
 
 pub use gpu_env::{DiscLight, EnvLight, Lighting};

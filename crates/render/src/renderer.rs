@@ -17,7 +17,6 @@ use crate::schedule::{LightingSchedule, WalkSchedule};
 use crate::settings::camera_params;
 pub use crate::settings::{RenderSettings, MAX_LIGHTS, MAX_SIZE, MAX_SPP};
 use crate::shaders;
-use crate::tile_order::tile_row_stride;
 use crate::vulkan::{ComputeKernel, DeviceInfo, DeviceRequest, GpuBuffer, GpuContext};
 use crate::RenderError;
 
@@ -75,6 +74,8 @@ pub struct Renderer {
     /// The driver ends an invocation's loops once they have turned 65,535 times in all (the
     /// start-up probe found it): every dispatch then takes one sample per pixel.
     cuts_loops: bool,
+    /// The integrator's invocations take pixels off a queue (`set_pixel_queue`).
+    pixel_queue: bool,
 }
 
 impl Renderer {
@@ -98,8 +99,14 @@ impl Renderer {
             count: false,
             group_limit: None,
             cuts_loops: false,
+            pixel_queue: false,
         };
         renderer.cuts_loops = renderer.warm_up()?;
+        // On a CPU device a thread renders one fixed block of workgroups, so one pixel per
+        // invocation leaves a thread idle once its block is done (1.80 of 2 cores busy on a
+        // head render, Mesa 25); a GPU rebalances its workgroups itself. Not where loops are cut: an
+        // invocation that renders many pixels turns its loops far more than 65,535 times.
+        renderer.pixel_queue = renderer.ctx.is_cpu() && !renderer.cuts_loops;
         if renderer.cuts_loops {
             let info = renderer.ctx.info();
             tracing::warn!(
@@ -145,6 +152,29 @@ impl Renderer {
     /// dispatch takes one sample per pixel (found by the start-up probe).
     pub fn cuts_loops(&self) -> bool {
         self.cuts_loops
+    }
+
+    /// Whether the integrator's invocations take their pixels off a queue until the image is
+    /// done (true) or render one pixel each, the one their workgroup names (false), for the
+    /// renders that follow. The images are the same either way; the default is the queue on CPU
+    /// devices, where it keeps every thread busy to the end of a dispatch, unless the driver
+    /// cuts loops (`cuts_loops`), where it is refused.
+    pub fn set_pixel_queue(&mut self, on: bool) -> Result<(), RenderError> {
+        if on && self.cuts_loops {
+            let info = self.ctx.info();
+            return Err(RenderError::InvalidSettings(format!(
+                "{} ({}) ends shader loops after 65,535 turns, and an invocation that takes \
+                 pixels off the queue turns them more often: render without the pixel queue, \
+                 or on Mesa 25 or newer (source scripts/lavapipe-backports.sh)",
+                info.name, info.driver
+            )));
+        }
+        self.pixel_queue = on;
+        Ok(())
+    }
+
+    pub fn pixel_queue(&self) -> bool {
+        self.pixel_queue
     }
 
     /// Chooses where subsurface walks run for the renders that follow (the megakernel unless
@@ -265,11 +295,7 @@ impl Renderer {
             num_lights: lights.len() as u32,
             tlas_node_offset: scene.tlas_node_offset,
             scene_flags: scene.scene_flags(),
-            tile_row_stride: if self.ctx.is_cpu() {
-                tile_row_stride(h.div_ceil(8))
-            } else {
-                1
-            },
+            pixel_queue: self.pixel_queue as u32,
             loop_check: LOOP_CHECK_TURNS,
             _pad: 0,
             cam_pos,
@@ -291,7 +317,7 @@ impl Renderer {
             if counting {
                 (TC_FIRST as u64 + TC_WORDS as u64 * pixels) * 4
             } else {
-                16
+                TC_FIRST as u64 * 4
             },
         )?;
         let dispatch = self.walk == WalkSchedule::Dispatch;
@@ -414,7 +440,7 @@ impl Renderer {
                     kernel.dispatch_resources(&bindings, bytemuck::bytes_of(&push), groups)?;
                 }
                 // With counters on this reads the per-pixel words too; they accumulate across
-                // dispatches, only the first four are reset.
+                // dispatches, only the renderer's own words before TC_FIRST are reset.
                 let c: Vec<u32> = counters.read()?;
                 if c[2] > 0 {
                     let info = self.ctx.info();
@@ -426,7 +452,7 @@ impl Renderer {
                 }
                 rays += c[0] as u64;
                 simd_width = simd_width.max(c[3]);
-                counters.write(&[0u32; 4])?;
+                counters.write(&[0u32; TC_FIRST])?;
                 s += count;
                 done += count as u64;
                 progress(Progress { done, total });
